@@ -1,0 +1,64 @@
+"""Stage 2, data association (image-to-model): box distances and nearest-neighbour matching.
+
+Pure numpy. Section 3.2 of the paper; DESIGN.md 1.2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import SHIFTS, Boxes
+
+
+def vertex_distance(det: Boxes, cands: Boxes, min_visible_pairs: int = 3):
+    """Eq. 2 between one detection box and M candidate boxes: (distance (M,), shift (M,)).
+
+    The distance is the mean Euclidean distance of corresponding vertices. Correspondence is the
+    global nearest neighbour particularised to Z-oriented boxes: the 4 cyclic shifts of the top ring
+    (the same shift for the bottom ring), keeping the smallest mean. When at least
+    ``min_visible_pairs`` corresponding pairs are visible in both boxes, only those pairs count, so
+    a partial view is compared with the part of the map box that it really saw.
+
+    ``det`` holds one box (index 0). ``shift[m] = k`` means detection vertex i corresponds to
+    vertex ``SHIFTS[k][i]`` of candidate m.
+    """
+    m = len(cands)
+    if m == 0:
+        return np.zeros(0), np.zeros(0, dtype=int)
+    d_corners = det.corners[0]  # (8, 3)
+    d_vis = det.visible[0]  # (8,)
+    c_corners = cands.corners[:, SHIFTS]  # (M, 4, 8, 3): shifted candidate corners
+    c_vis = cands.visible[:, SHIFTS]  # (M, 4, 8)
+    dist = np.linalg.norm(c_corners - d_corners, axis=-1)  # (M, 4, 8)
+    both = c_vis & d_vis
+    n_both = both.sum(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        restricted = (dist * both).sum(axis=-1) / n_both
+    mean = np.where(n_both >= min_visible_pairs, restricted, dist.mean(axis=-1))
+    shift = mean.argmin(axis=1)
+    return mean[np.arange(m), shift], shift
+
+
+def centroid_distance(det: Boxes, cands: Boxes):
+    """Baseline metric: distance between box centres (M,), ignoring size, orientation and views."""
+    return np.linalg.norm(cands.center - det.center[0], axis=-1)
+
+
+def thresholds_for(det_class: int, cand_classes: np.ndarray, same: float, other: float) -> np.ndarray:
+    """The match threshold (M,) per candidate: looser when the top classes agree."""
+    return np.where(cand_classes == det_class, same, other)
+
+
+def nearest_under_threshold(dist: np.ndarray, thr: np.ndarray) -> int:
+    """Index of the closest candidate within its threshold, or -1.
+
+    A detection takes the closest candidate under the threshold; several detections of one frame may
+    take the same map object (over-segmentation of one object), so no global assignment is solved.
+    """
+    if dist.size == 0:
+        return -1
+    ok = dist <= thr
+    if not ok.any():
+        return -1
+    masked = np.where(ok, dist, np.inf)
+    return int(masked.argmin())

@@ -1,0 +1,184 @@
+"""The ``ltc`` command line: a thin layer that parses options, calls the library and prints.
+
+Library errors (``LtcError``) become one line on stderr and exit status 1 (2 for usage errors, as
+click does); ``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+from collections import Counter
+
+import click
+import numpy as np
+
+from . import __version__, plugins
+from .config import load_config
+from .errors import LtcError
+
+
+class LtcGroup(click.Group):
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except LtcError as exc:
+            if ctx.params.get("debug"):
+                raise
+            raise click.ClickException(str(exc)) from None
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            ctx.exit(130)
+
+
+@click.group(cls=LtcGroup)
+@click.version_option(__version__, prog_name="ltc")
+@click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
+def cli(debug):
+    """ltc: object-oriented semantic maps that stay true over months (LTC-Mapping)."""
+
+
+def _plural(n: int, word: str) -> str:
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
+@cli.command()
+@click.argument("recordings", nargs=-1, required=True, type=click.Path())
+@click.option("--map", "map_path", required=True, type=click.Path(dir_okay=False), help="The map file (.h5); created if absent.")
+@click.option("--detector", help="Detector plugin (default: recorded).")
+@click.option("--metric", help="Association metric plugin (default: vertex).")
+@click.option("--policy", help="Maintenance policy plugin (default: non-detection).")
+@click.option("--config", "config_file", type=click.Path(dir_okay=False), help="YAML file of settings.")
+@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Override one setting, e.g. --set association.threshold_same_class=0.5")
+@click.option("--calibration", type=click.Path(dir_okay=False), help="Calibration file from `ltc calibrate` (sets v_Other).")
+@click.option("--checkpoint-every", default=50, show_default=True, type=click.IntRange(min=0), help="Commit the map every N frames (0: only at the end).")
+@click.option("--strict", is_flag=True, help="Stop at the first bad frame instead of skipping it.")
+@click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
+def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict, reader):
+    """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
+    from .ingest import ingest as run_ingest
+    from .ingest import load_calibration
+
+    cfg = load_config(config_file, sets)
+    if detector:
+        cfg["detector"]["name"] = detector
+    if metric:
+        cfg["association"]["metric"] = metric
+    if policy:
+        cfg["maintenance"]["policy"] = policy
+    calib = load_calibration(calibration) if calibration else None
+
+    stop = {"signal": None}
+
+    def on_signal(signum, _frame):
+        if stop["signal"] is not None and signum == signal.SIGINT:
+            raise KeyboardInterrupt  # a second Ctrl-C: stop now (the map is still committed)
+        stop["signal"] = signum
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    bar = None
+    try:
+        progress = None
+        if sys.stderr.isatty():
+            from .ingest import open_recording
+
+            total = sum(len(open_recording(r, reader)) for r in recordings)
+            bar = click.progressbar(length=total, label="ingest", file=sys.stderr)
+            bar.__enter__()
+            progress = bar.update
+
+        def warn(msg):
+            click.echo(f"warning: {msg}", err=True)
+
+        summary = run_ingest(
+            list(recordings), map_path, cfg, reader=reader, calibration=calib,
+            checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=warn,
+            should_stop=lambda: stop["signal"] is not None,
+        )
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+        for s, h in old.items():
+            signal.signal(s, h)
+    line = (
+        f"{map_path}: {_plural(summary.frames_done, 'frame')} ingested, {summary.frames_skipped} skipped, "
+        f"{summary.frames_already} already in the map; objects {summary.created} created, "
+        f"{summary.merged} merged, {summary.removed} removed; {summary.objects} in the map; "
+        f"{summary.seconds:.1f} s"
+    )
+    if summary.interrupted:
+        click.echo(f"{line} (interrupted: run the same command again to resume)")
+        sys.exit(130 if stop["signal"] == signal.SIGINT else 143)
+    click.echo(line)
+
+
+@cli.command()
+@click.argument("map_path", type=click.Path())
+@click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
+def info(map_path, fmt):
+    """Summarise a map: classes, objects, sessions, frames."""
+    from .mapping import ACTIVE, MERGED, REMOVED
+    from .store import load_map
+
+    smap = load_map(map_path)
+    t = smap.objects
+    active = np.flatnonzero(t.status == ACTIVE)
+    per_class = Counter(smap.classes[int(i)] for i in t.scores[active, :-1].argmax(axis=1)) if len(active) else Counter()
+    doc = {
+        "map": str(map_path),
+        "format_version": 1,
+        "classes": smap.classes,
+        "objects": {"active": int(len(active)), "removed": int((t.status == REMOVED).sum()),
+                    "merged": int((t.status == MERGED).sum())},
+        "per_class": dict(sorted(per_class.items())),
+        "frames": len(smap.frame_keys),
+        "events": len(smap.events),
+        "sessions": [
+            {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped", "v_other")}
+            | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
+            for s in smap.sessions
+        ],
+        "up_rotation": np.asarray(smap.up_rotation).round(6).tolist(),
+        "created": smap.created,
+    }
+    if fmt == "json":
+        click.echo(json.dumps(doc, indent=2))
+        return
+    o = doc["objects"]
+    click.echo(f"map          {map_path}  (ltc-map v1, created {smap.created})")
+    click.echo(f"classes      {len(smap.classes)}: {', '.join(smap.classes)}")
+    click.echo(f"objects      {o['active']} active, {o['removed']} removed, {o['merged']} merged")
+    for name, n in doc["per_class"].items():
+        click.echo(f"  {name:<18} {n}")
+    click.echo(f"frames       {doc['frames']} ingested; {doc['events']} events logged")
+    click.echo(f"sessions     {len(smap.sessions)}")
+    for i, s in enumerate(doc["sessions"]):
+        click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped)  "
+                   f"{s['detector']}/{s['metric']}/{s['policy']} v_other={s['v_other']:.3g}  {', '.join(s['sources'])}")
+    click.echo(f"{map_path}: {o['active']} objects of {len(per_class)} classes from {len(smap.frame_keys)} frames in {len(smap.sessions)} sessions")
+
+
+@cli.command("plugins")
+@click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
+def plugins_cmd(fmt):
+    """List the installed plugins, their hooks and what they register."""
+    rows = plugins.describe()
+    if fmt == "json":
+        click.echo(json.dumps(rows, indent=2))
+        return
+    for r in rows:
+        regs = "; ".join(f"{k}: {', '.join(v)}" for k, v in r["registers"].items() if v)
+        click.echo(f"{r['name']:<16} {r['package'] or '':<12} hooks: {', '.join(r['hooks'])}")
+        if regs:
+            click.echo(f"{'':<16} registers {regs}")
+    n = {k: len(plugins.registry(k)) for k in plugins.KINDS}
+    click.echo(f"{len(rows)} plugins: " + ", ".join(f"{v} {k}" for k, v in n.items()))
+
+
+def main():
+    cli(prog_name="ltc")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,247 @@
+"""Pure numpy geometry of Z-oriented boxes, poses and pinhole cameras.
+
+Conventions (DESIGN.md section 2): map frame right-handed with z up; camera frame OpenCV (x right,
+y down, z forward); poses are ``T_world_camera`` (camera-to-world). A box is ``center (3,)``,
+``yaw`` about z in [-pi/2, pi/2), ``size (3,)`` along the box's own x, y and the world z. Its
+``corners (8, 3)`` are the bottom ring 0-3 counter-clockwise seen from above, then the top ring 4-7
+above them in the same order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+HALF_PI = np.pi / 2
+
+# Bottom ring counter-clockwise seen from +z, then the top ring: unit offsets in the box frame.
+_CORNER_SIGNS = np.array(
+    [
+        [-1, -1, -1],
+        [+1, -1, -1],
+        [+1, +1, -1],
+        [-1, +1, -1],
+        [-1, -1, +1],
+        [+1, -1, +1],
+        [+1, +1, +1],
+        [-1, +1, +1],
+    ],
+    dtype=np.float64,
+)
+
+# Edges of a box grouped by the box axis they run along: x, y, z.
+EDGES_BY_AXIS = (
+    np.array([[0, 1], [3, 2], [4, 5], [7, 6]]),
+    np.array([[1, 2], [0, 3], [5, 6], [4, 7]]),
+    np.array([[0, 4], [1, 5], [2, 6], [3, 7]]),
+)
+
+# Vertex permutations for the 4 cyclic shifts of the rings (same shift for bottom and top ring):
+# SHIFTS[k][i] is the vertex of the other box that corresponds to vertex i of this one.
+SHIFTS = np.array(
+    [[(i + k) % 4 for i in range(4)] + [4 + (i + k) % 4 for i in range(4)] for k in range(4)]
+)
+
+
+def wrap_yaw(yaw):
+    """Yaw in [-pi/2, pi/2): a Z-oriented box is the same box after a half turn."""
+    return np.mod(np.asarray(yaw, dtype=np.float64) + HALF_PI, np.pi) - HALF_PI
+
+
+def rot_z(yaw) -> np.ndarray:
+    """R (..., 3, 3) rotating by ``yaw`` about z."""
+    yaw = np.asarray(yaw, dtype=np.float64)
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.zeros(yaw.shape + (3, 3))
+    R[..., 0, 0], R[..., 0, 1] = c, -s
+    R[..., 1, 0], R[..., 1, 1] = s, c
+    R[..., 2, 2] = 1.0
+    return R
+
+
+def box_corners(center, yaw, size) -> np.ndarray:
+    """Corners of boxes: center (..., 3), yaw (...,), size (..., 3) -> corners (..., 8, 3)."""
+    center = np.asarray(center, dtype=np.float64)
+    size = np.asarray(size, dtype=np.float64)
+    yaw = np.asarray(yaw, dtype=np.float64)
+    local = _CORNER_SIGNS * (size[..., None, :] / 2.0)  # (..., 8, 3)
+    c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
+    x = c * local[..., 0] - s * local[..., 1]
+    y = s * local[..., 0] + c * local[..., 1]
+    return np.stack([x, y, local[..., 2]], axis=-1) + center[..., None, :]
+
+
+@dataclass
+class Boxes:
+    """M Z-oriented boxes as arrays: center (M, 3), yaw (M,), size (M, 3), visible (M, 8) bool."""
+
+    center: np.ndarray
+    yaw: np.ndarray
+    size: np.ndarray
+    visible: np.ndarray
+
+    def __post_init__(self):
+        self._corners = None
+
+    @property
+    def corners(self) -> np.ndarray:
+        """(M, 8, 3) corners in the map frame."""
+        if self._corners is None:
+            self._corners = box_corners(self.center, self.yaw, self.size)
+        return self._corners
+
+    def __len__(self) -> int:
+        return len(self.yaw)
+
+    def take(self, idx) -> "Boxes":
+        return Boxes(self.center[idx], self.yaw[idx], self.size[idx], self.visible[idx])
+
+
+def convex_hull_xy(xy: np.ndarray) -> np.ndarray:
+    """Counter-clockwise hull vertices (H, 2) of points xy (N, 2); degenerate sets give 1-2 points."""
+    xy = np.asarray(xy, dtype=np.float64)
+    if len(xy) >= 3:
+        try:
+            hull = ConvexHull(xy)
+            return xy[hull.vertices]  # qhull gives 2-D hulls counter-clockwise
+        except QhullError:
+            pass
+    # Collinear or tiny sets: the two extreme points along the principal direction.
+    if len(xy) == 0:
+        raise ValueError("no points")
+    d = xy - xy.mean(axis=0)
+    _, _, vt = np.linalg.svd(d, full_matrices=False)
+    t = d @ vt[0]
+    return xy[[int(np.argmin(t)), int(np.argmax(t))]]
+
+
+def min_area_rect(xy: np.ndarray):
+    """Exact minimum-area enclosing rectangle of points xy (N, 2) by rotating calipers.
+
+    The optimal rectangle has one side collinear with a hull edge (Freeman & Shapira 1975), so
+    trying each hull edge direction is exact. Returns (center_xy (2,), yaw, (sx, sy)), yaw in
+    [-pi/2, pi/2) and sx measured along the yaw direction.
+    """
+    hull = convex_hull_xy(xy)
+    if len(hull) == 1:
+        return hull[0].copy(), 0.0, (0.0, 0.0)
+    edges = np.roll(hull, -1, axis=0) - hull
+    angles = np.arctan2(edges[:, 1], edges[:, 0])
+    angles = angles[np.hypot(edges[:, 0], edges[:, 1]) > 1e-12]
+    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    u = hull[None, :, 0] * c + hull[None, :, 1] * s  # coordinates along each candidate axis
+    v = -hull[None, :, 0] * s + hull[None, :, 1] * c
+    umin, umax = u.min(axis=1), u.max(axis=1)
+    vmin, vmax = v.min(axis=1), v.max(axis=1)
+    area = (umax - umin) * (vmax - vmin)
+    k = int(np.argmin(area))
+    a = float(angles[k])
+    uc, vc = (umin[k] + umax[k]) / 2, (vmin[k] + vmax[k]) / 2
+    center = np.array([uc * np.cos(a) - vc * np.sin(a), uc * np.sin(a) + vc * np.cos(a)])
+    # A half turn gives the same rectangle with the same sides.
+    return center, float(wrap_yaw(a)), (float(umax[k] - umin[k]), float(vmax[k] - vmin[k]))
+
+
+def fit_box(points_xyz: np.ndarray):
+    """Minimum-area Z-oriented box of points (N, 3): (center (3,), yaw, size (3,))."""
+    cxy, yaw, (sx, sy) = min_area_rect(points_xyz[:, :2])
+    zmin, zmax = float(points_xyz[:, 2].min()), float(points_xyz[:, 2].max())
+    center = np.array([cxy[0], cxy[1], (zmin + zmax) / 2])
+    return center, yaw, np.array([sx, sy, zmax - zmin])
+
+
+def align_yaw(yaw_ref, yaw, size):
+    """Re-express boxes (yaw, size) with the quarter turn closest to ``yaw_ref``.
+
+    A box with yaw + pi/2 and its x and y sizes swapped is the same box; averaging orientations
+    needs both in the representation nearest each other. Works on scalars or arrays; the returned
+    yaw is within pi/4 of yaw_ref (not wrapped).
+    """
+    yaw = np.asarray(yaw, dtype=np.float64)
+    size = np.array(size, dtype=np.float64, copy=True)
+    k = np.round((yaw - yaw_ref) / HALF_PI).astype(int)
+    yaw_aligned = yaw - k * HALF_PI
+    odd = (k % 2) == 1
+    if np.ndim(odd) == 0:
+        if odd:
+            size[..., [0, 1]] = size[..., [1, 0]]
+    else:
+        size[odd, 0], size[odd, 1] = size[odd, 1].copy(), size[odd, 0].copy()
+    return yaw_aligned, size
+
+
+def quat_to_rot(q_xyzw) -> np.ndarray:
+    """Rotation matrix (3, 3) of a unit quaternion given as (qx, qy, qz, qw)."""
+    x, y, z, w = (float(v) for v in q_xyzw)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def pose_matrix(t_xyz, q_xyzw) -> np.ndarray:
+    """T (4, 4) from a translation and a unit quaternion (qx, qy, qz, qw)."""
+    T = np.eye(4)
+    T[:3, :3] = quat_to_rot(q_xyzw)
+    T[:3, 3] = np.asarray(t_xyz, dtype=np.float64)
+    return T
+
+
+def is_rotation(R: np.ndarray, tol: float = 1e-3) -> bool:
+    """True when R (3, 3) is orthonormal with determinant +1 (within tol)."""
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        return False
+    return bool(np.abs(R.T @ R - np.eye(3)).max() < tol and abs(np.linalg.det(R) - 1.0) < tol)
+
+
+def invert_pose(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform (4, 4)."""
+    Ti = np.eye(4)
+    R = T[:3, :3]
+    Ti[:3, :3] = R.T
+    Ti[:3, 3] = -R.T @ T[:3, 3]
+    return Ti
+
+
+def rotation_between(a, b) -> np.ndarray:
+    """Smallest rotation R (3, 3) with R a = b for unit-norm directions a, b (3,)."""
+    a = np.asarray(a, dtype=np.float64) / np.linalg.norm(a)
+    b = np.asarray(b, dtype=np.float64) / np.linalg.norm(b)
+    v = np.cross(a, b)
+    c = float(a @ b)
+    if c < -1 + 1e-9:  # opposite: half turn about any axis normal to a
+        axis = np.cross(a, [1.0, 0, 0])
+        if np.linalg.norm(axis) < 1e-6:
+            axis = np.cross(a, [0, 1.0, 0])
+        axis /= np.linalg.norm(axis)
+        return 2 * np.outer(axis, axis) - np.eye(3)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1 + c)
+
+
+def backproject(u, v, z, intr) -> np.ndarray:
+    """Pixels to camera-frame points (N, 3) by eq. 1: X = Z (u - cx) / fx, Y = Z (v - cy) / fy."""
+    z = np.asarray(z, dtype=np.float64)
+    x = z * (np.asarray(u, dtype=np.float64) - intr.cx) / intr.fx
+    y = z * (np.asarray(v, dtype=np.float64) - intr.cy) / intr.fy
+    return np.stack([x, y, z], axis=-1)
+
+
+def transform(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply T (4, 4) to points (..., 3)."""
+    return points @ T[:3, :3].T + T[:3, 3]
+
+
+def project(points_cam: np.ndarray, intr):
+    """Camera-frame points (..., 3) to pixels: (u (...), v (...), z (...))."""
+    z = points_cam[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = intr.fx * points_cam[..., 0] / z + intr.cx
+        v = intr.fy * points_cam[..., 1] / z + intr.cy
+    return u, v, z

@@ -1,0 +1,61 @@
+"""The hook specifications of ltc (pluggy project name ``ltc``, entry-point group ``ltc``).
+
+Every hook receives a ``register`` callable and registers implementations *by name*; built-in
+plugins under ``plugins/`` use exactly these hooks through the same entry-point group as third-party
+packages. A plugin module implements any subset of them with ``@ltc_cli.hookimpl``.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import pluggy
+
+hookspec = pluggy.HookspecMarker("ltc")
+hookimpl = pluggy.HookimplMarker("ltc")
+
+
+@hookspec
+def register_detectors(register: Callable) -> None:
+    """Register detectors: ``register(name, factory)``.
+
+    ``factory(recording, options: dict) -> Detector`` is called once per recording. A detector has
+    ``classes: list[str]`` (its vocabulary) and ``detect(frame) -> list[Detection]`` where a
+    :class:`ltc_cli.types.Detection` holds a boolean instance mask of the frame's size and a score
+    vector aligned with ``classes``. Detectors may raise :class:`ltc_cli.errors.FrameError` for a
+    frame they cannot read (the frame is skipped) and ``LtcError`` for fatal problems.
+    """
+
+
+@hookspec
+def register_metrics(register: Callable) -> None:
+    """Register data-association metrics: ``register(name, factory)``.
+
+    ``factory(options: dict) -> Metric`` (options: the ``association`` config section);
+    ``Metric.distance(det, cands) -> (M,) float`` gives the
+    distance in metres between one detection box and M candidate map boxes, each a
+    :class:`ltc_cli.types.Boxes` (corners, visible flags, centres, sizes). Smaller is closer; the
+    association thresholds of the config apply to it.
+    """
+
+
+@hookspec
+def register_policies(register: Callable) -> None:
+    """Register map-maintenance policies: ``register(name, factory)``.
+
+    ``factory(options: dict) -> Policy`` (options: the ``maintenance`` config section);
+    ``Policy.non_detections(matched (M,) bool, visible_px (M,) float, min_visible_pixels) -> (M,)
+    bool`` receives, for the M map objects in view of a frame, whether each was matched by a
+    detection and how many of its pixels the camera should have seen (not hidden by other map
+    objects nor by nearer observed depth), and returns which of them get a non-detection (eq. 4).
+    """
+
+
+@hookspec
+def register_readers(register: Callable) -> None:
+    """Register recording readers: ``register(name, reader)``.
+
+    ``reader.sniff(path) -> bool`` says whether a folder is in its layout (used to choose a reader
+    automatically); ``reader.open(path, options: dict) -> Recording`` opens it, raising
+    :class:`ltc_cli.errors.RecordingError` with the file at fault when it cannot.
+    """

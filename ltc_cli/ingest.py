@@ -1,0 +1,271 @@
+"""Ingest sessions: recordings -> detector -> Mapper -> map store, with checkpoints and resume.
+
+No printing here: the caller passes ``progress`` and ``warn`` callbacks and a ``should_stop``
+predicate (the CLI sets it from SIGINT / SIGTERM). Every way out of :func:`ingest` after the map is
+opened commits a whole map first, so nothing already in the map is lost.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import yaml
+
+from . import __version__, plugins
+from .errors import ConfigError, FrameError, LtcError, RecordingError
+from .geometry import rotation_between
+from .mapping import ClassMapper, Mapper, SemanticMap
+from .schemas import validate
+from .store import MapLock, load_map, save_map
+from .types import Recording
+
+
+@dataclass
+class IngestSummary:
+    frames_done: int = 0
+    frames_skipped: int = 0
+    frames_already: int = 0
+    detections: int = 0
+    created: int = 0
+    merged: int = 0
+    removed: int = 0
+    non_detections: int = 0
+    objects: int = 0
+    seconds: float = 0.0
+    interrupted: bool = False
+    session: int = 0
+    stage_seconds: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def now_iso() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def open_recording(path, reader: str | None = None, options: dict | None = None) -> Recording:
+    """Open a recording with the named reader, or the first installed reader that recognises it."""
+    p = Path(path)
+    if not p.exists():
+        raise RecordingError("recording does not exist", p)
+    if reader:
+        return plugins.get("readers", reader).factory.open(p, options or {})
+    for name, reg in sorted(plugins.registry("readers").items()):
+        if reg.factory.sniff(p):
+            return reg.factory.open(p, options or {})
+    known = ", ".join(sorted(plugins.registry("readers")))
+    raise RecordingError(f"no reader recognises this folder (installed readers: {known})", p)
+
+
+def load_calibration(path) -> dict:
+    p = Path(path)
+    try:
+        doc = yaml.safe_load(p.read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read calibration ({exc.strerror})", p) from None
+    except yaml.YAMLError:
+        raise ConfigError("calibration is not valid YAML", p) from None
+    validate(doc, "calibration", p)
+    return doc
+
+
+def up_rotation_for(rec: Recording, sample_frames: int = 5) -> np.ndarray:
+    """R (3, 3) that turns the recording's world into a z-up map frame."""
+    if rec.up is None:
+        return np.eye(3)
+    if isinstance(rec.up, str) and rec.up == "estimate":
+        from . import upaxis
+
+        step = max(1, len(rec.frames) // sample_frames)
+        poses, samples = [], []
+        for ref in rec.frames[::step][:sample_frames]:
+            try:
+                fr = ref.load()
+            except FrameError:
+                continue
+            poses.append(fr.T_world_camera)
+            samples.append((fr.depth_m, fr.T_world_camera))
+        if not poses:
+            raise RecordingError("cannot estimate the up axis: no readable frame", rec.path)
+        up = upaxis.estimate_up(np.array(poses), samples, rec.intrinsics)
+    else:
+        up = np.asarray(rec.up, dtype=np.float64)
+    return rotation_between(up, [0.0, 0.0, 1.0])
+
+
+def ingest(
+    recording_paths: list,
+    map_path,
+    config: dict,
+    *,
+    reader: str | None = None,
+    reader_options: dict | None = None,
+    calibration: dict | None = None,
+    checkpoint_every: int = 50,
+    strict: bool = False,
+    progress: Callable | None = None,
+    warn: Callable[[str], None] | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    on_frame: Callable | None = None,
+) -> IngestSummary:
+    """Ingest recordings into the map at ``map_path`` (created when it does not exist).
+
+    Frames already in the map (by recording identity and frame id) are skipped, so re-running an
+    interrupted ingest resumes it, and re-running a finished one changes nothing.
+    """
+    warn = warn or (lambda msg: None)
+    should_stop = should_stop or (lambda: False)
+    t_start = time.perf_counter()
+    map_path = Path(map_path)
+    if calibration is not None:
+        config["maintenance"]["v_other"] = float(calibration["v_other"])
+
+    # Everything that can be checked before the map is touched is checked first.
+    recordings = [open_recording(p, reader, reader_options) for p in recording_paths]
+    metric_name = config["association"]["metric"]
+    policy_name = config["maintenance"]["policy"]
+    metric = plugins.get("metrics", metric_name).factory(config["association"])
+    policy = plugins.get("policies", policy_name).factory(config["maintenance"])
+    det_name = config["detector"]["name"]
+    det_factory = plugins.get("detectors", det_name).factory
+    detectors = [det_factory(rec, dict(config["detector"]["options"])) for rec in recordings]
+    ups = [up_rotation_for(rec) for rec in recordings]
+
+    lock = MapLock(map_path).acquire()
+    try:
+        if map_path.exists():
+            smap = load_map(map_path)
+        else:
+            classes = config["map"]["classes"] or recordings[0].classes or detectors[0].classes
+            if not classes:
+                raise ConfigError("no class list: give map.classes, or a recording with classes")
+            smap = SemanticMap.new(classes)
+            smap.created = now_iso()
+            smap.up_rotation = ups[0]
+        summary = _run(smap, map_path, config, recordings, detectors, ups, metric, policy, calibration,
+                       checkpoint_every, strict, progress, warn, should_stop, on_frame)
+    finally:
+        lock.release()
+    summary.seconds = time.perf_counter() - t_start
+    return summary
+
+
+def _session_row(smap, config, recordings, ups, calibration) -> tuple[int, dict]:
+    sources = [str(Path(r.path).resolve()) for r in recordings]
+    identities = [r.identity for r in recordings]
+    last = smap.sessions[-1] if smap.sessions else None
+    # An interrupted session over the same recordings is resumed, not started anew, so a resumed
+    # ingest ends in exactly the map an uninterrupted one makes.
+    if last is not None and last["status"] != "complete" and json.loads(last["recordings"]) == identities:
+        last["status"] = "running"
+        return len(smap.sessions) - 1, last
+    settings = {k: v for k, v in config.items() if k != "detector"}
+    row = {
+        "started": now_iso(), "finished": "", "status": "running",
+        "sources": json.dumps(sources), "recordings": json.dumps(identities),
+        "readers": json.dumps([r.format for r in recordings]),
+        "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
+        "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
+        "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
+        "frames_done": 0, "frames_skipped": 0,
+        "up_rotation": json.dumps([np.asarray(u).round(9).tolist() for u in ups]),
+    }
+    if calibration is not None:
+        row["settings"] = json.dumps({**settings, "calibration": calibration})
+    smap.sessions.append(row)
+    return len(smap.sessions) - 1, row
+
+
+def _run(smap, map_path, config, recordings, detectors, ups, metric, policy, calibration,
+         checkpoint_every, strict, progress, warn, should_stop, on_frame) -> IngestSummary:
+    session, row = _session_row(smap, config, recordings, ups, calibration)
+    mapper = Mapper(smap, config, metric, policy, session=session)
+    summary = IngestSummary(session=session)
+    stage = {k: 0.0 for k in ("load", "detect", "modeling", "association", "integration", "maintenance", "merge")}
+    since_commit = 0
+    error: BaseException | None = None
+    try:
+        for rec, det, R_up in zip(recordings, detectors, ups):
+            mapper_classes = ClassMapper(det.classes, smap.classes)
+            T_up = np.eye(4)
+            T_up[:3, :3] = R_up
+            m_cfg = config["modeling"]
+            depth_range = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
+            depth_range = (max(depth_range[0], m_cfg["min_depth"]), min(depth_range[1], m_cfg["max_depth"]))
+            for ref in rec.frames:
+                if should_stop():
+                    summary.interrupted = True
+                    break
+                key = f"{rec.identity}/{ref.key}"
+                if key in smap.frame_keys:
+                    summary.frames_already += 1
+                    if progress:
+                        progress(1)
+                    continue
+                try:
+                    t0 = time.perf_counter()
+                    frame = ref.load()
+                    t1 = time.perf_counter()
+                    dets = det.detect(frame)
+                    t2 = time.perf_counter()
+                except FrameError as exc:
+                    if strict:
+                        raise
+                    warn(f"skipped frame {ref.key}: {exc}")
+                    summary.frames_skipped += 1
+                    row["frames_skipped"] += 1
+                    if progress:
+                        progress(1)
+                    continue
+                stage["load"] += t1 - t0
+                stage["detect"] += t2 - t1
+                masks, vectors = [], []
+                for d in dets:
+                    v = mapper_classes(d.scores)
+                    if v is not None:
+                        masks.append(d.mask)
+                        vectors.append(v)
+                res = mapper.process_frame(
+                    ref.index, key, masks, vectors,
+                    frame.depth_m, T_up @ frame.T_world_camera, frame.intrinsics, depth_range,
+                )
+                for k, v in res.timings.items():
+                    stage[k] += v
+                smap.frame_keys.add(key)
+                summary.frames_done += 1
+                row["frames_done"] += 1
+                summary.detections += res.detections
+                summary.created += res.created
+                summary.merged += res.merged
+                summary.removed += res.removed
+                summary.non_detections += res.non_detections
+                since_commit += 1
+                if on_frame:
+                    on_frame(summary)
+                if progress:
+                    progress(1)
+                if checkpoint_every and since_commit >= checkpoint_every:
+                    save_map(smap, map_path)
+                    since_commit = 0
+            if summary.interrupted:
+                break
+    except BaseException as exc:  # commit what is done, then let the error go on
+        error = exc
+    row["status"] = "interrupted" if (summary.interrupted or error is not None) else "complete"
+    row["finished"] = now_iso()
+    save_map(smap, map_path)
+    summary.objects = len(smap.active_rows())
+    summary.stage_seconds = stage
+    if error is not None:
+        raise error
+    return summary
+
+
+__all__ = ["ingest", "open_recording", "IngestSummary", "LtcError", "load_calibration"]

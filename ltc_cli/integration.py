@@ -1,0 +1,108 @@
+"""Stage 3, map integration: fuse a detection box and class vector into a map object.
+
+Pure numpy. Section 3.3 of the paper; DESIGN.md 1.3.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .association import vertex_distance
+from .geometry import SHIFTS, Boxes, align_yaw, box_corners, min_area_rect, wrap_yaw
+from .modeling import defined_flags
+
+
+def fuse_scores(s_i: np.ndarray, s_j: np.ndarray, D: float) -> np.ndarray:
+    """Eq. 3: s_j,c <- (s_i,c + D s_j,c) / sum_l (s_i,l + D s_j,l).
+
+    s_i (C+1,) is the new observation, s_j (C+1,) the map object's vector, D its weight (the number
+    of observations so far, possibly capped). With normalised vectors this is a running mean.
+    """
+    num = s_i + D * s_j
+    return num / num.sum()
+
+
+def non_detection_vector(n_classes: int, v_other: float) -> np.ndarray:
+    """Eq. 4: the class vector (r+1,) of a non-detection: (1 - v_Other) / r per class, v_Other last."""
+    v = np.full(n_classes + 1, (1.0 - v_other) / n_classes)
+    v[-1] = v_other
+    return v
+
+
+@dataclass
+class Box:
+    """One Z-oriented box: center (3,), yaw, size (3,), visible (8,) bool, defined."""
+
+    center: np.ndarray
+    yaw: float
+    size: np.ndarray
+    visible: np.ndarray
+    defined: bool
+
+    def as_boxes(self) -> Boxes:
+        return Boxes(self.center[None], np.array([self.yaw]), self.size[None], self.visible[None])
+
+
+def _corresponding_visible(src: Box, dst: Box) -> np.ndarray:
+    """src's visible flags (8,) re-indexed onto dst's vertices by the best cyclic shift."""
+    _, shift = vertex_distance(src.as_boxes(), dst.as_boxes(), min_visible_pairs=9)
+    out = np.zeros(8, dtype=bool)
+    out[SHIFTS[int(shift[0])]] = src.visible
+    return out
+
+
+def average_boxes(det: Box, obj: Box, w_det: float, w_obj: float) -> Box:
+    """Both Defined: the observation-weighted mean of centre, size and orientation."""
+    yaw_i, size_i = align_yaw(obj.yaw, det.yaw, det.size)
+    a = w_obj / (w_obj + w_det)
+    yaw = a * obj.yaw + (1 - a) * float(yaw_i)
+    visible = obj.visible | _corresponding_visible(det, obj)
+    return Box(
+        a * obj.center + (1 - a) * det.center,
+        float(wrap_yaw(yaw)),
+        a * obj.size + (1 - a) * size_i,
+        visible,
+        True,
+    )
+
+
+def enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, snap: float = 0.1) -> Box:
+    """Both partial: the minimum box enclosing both, eroded by ``erosion`` per side.
+
+    The erosion keeps repeated noisy partial views from growing the box without end; it never makes
+    the box smaller than the larger of the two boxes along any axis, so identical views do not shrink
+    it either. A vertex of the new box is visible when a visible vertex of either box lies within
+    ``snap`` metres of it.
+    """
+    c_det = box_corners(det.center, det.yaw, det.size)
+    c_obj = box_corners(obj.center, obj.yaw, obj.size)
+    pts = np.concatenate([c_det, c_obj])
+    cxy, yaw, (sx, sy) = min_area_rect(pts[:, :2])
+    zmin, zmax = pts[:, 2].min(), pts[:, 2].max()
+    size = np.array([sx, sy, zmax - zmin]) - 2 * erosion
+    _, s_det = align_yaw(yaw, det.yaw, det.size)
+    _, s_obj = align_yaw(yaw, obj.yaw, obj.size)
+    size = np.maximum(size, np.maximum(s_det, s_obj))
+    size = np.maximum(size, min_extent)
+    center = np.array([cxy[0], cxy[1], (zmin + zmax) / 2])
+    corners = box_corners(center, yaw, size)
+    seen = np.concatenate([c_det[det.visible], c_obj[obj.visible]])
+    if len(seen):
+        d = np.linalg.norm(corners[:, None, :] - seen[None, :, :], axis=-1)
+        visible = (d <= snap).any(axis=1)
+    else:
+        visible = np.zeros(8, dtype=bool)
+    return Box(center, float(yaw), size, visible, bool(defined_flags(visible)))
+
+
+def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float, min_extent: float) -> Box:
+    """The four cases of DESIGN.md 1.3 by the Defined flags of detection i and map object j."""
+    if det.defined and obj.defined:
+        return average_boxes(det, obj, w_det, w_obj)
+    if obj.defined:  # i partial, j Defined: a partial view cannot improve a complete box
+        return Box(obj.center.copy(), obj.yaw, obj.size.copy(), obj.visible.copy(), True)
+    if det.defined:  # i Defined, j partial: the complete view replaces the partial estimate
+        return Box(det.center.copy(), det.yaw, det.size.copy(), det.visible.copy(), True)
+    return enclosing_box(det, obj, erosion, min_extent)

@@ -1,0 +1,107 @@
+"""Stage 4, map maintenance: which map objects should have been seen in a frame, and how much.
+
+Pure numpy. Section 3.4 of the paper; DESIGN.md 1.4.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import Boxes, project, transform
+from .types import Intrinsics
+
+
+def in_view(boxes: Boxes, T_camera_map: np.ndarray, intr: Intrinsics, max_depth: float) -> np.ndarray:
+    """(M,) bool: boxes that overlap the image and come nearer than max_depth (frustum test).
+
+    Conservative on purpose: a box that straddles the camera plane counts as in view; the precise
+    visible-pixel count of :func:`visible_pixels` decides about non-detections.
+    """
+    if len(boxes) == 0:
+        return np.zeros(0, dtype=bool)
+    pts = transform(T_camera_map, boxes.corners)  # (M, 8, 3)
+    z = pts[..., 2]
+    front = z > 1e-3
+    u, v, _ = project(np.where(front[..., None], pts, 1.0), intr)
+    big = 1e9
+    straddle = front.any(axis=1) & ~front.all(axis=1)
+    umin = np.where(front, u, big).min(axis=1)
+    umax = np.where(front, u, -big).max(axis=1)
+    vmin = np.where(front, v, big).min(axis=1)
+    vmax = np.where(front, v, -big).max(axis=1)
+    overlap = (umax >= 0) & (umin < intr.width) & (vmax >= 0) & (vmin < intr.height)
+    near = np.where(front, z, big).min(axis=1) < max_depth
+    return front.any(axis=1) & (overlap | straddle) & (near | straddle)
+
+
+def ray_grid(intr: Intrinsics, step: int):
+    """Pixel centres (u (P,), v (P,)) of one ray per step x step block."""
+    us = np.arange(step / 2 - 0.5, intr.width, step)
+    vs = np.arange(step / 2 - 0.5, intr.height, step)
+    uu, vv = np.meshgrid(us, vs)
+    return uu.ravel(), vv.ravel()
+
+
+def box_entry_depths(boxes: Boxes, T_map_camera: np.ndarray, intr: Intrinsics, u, v) -> np.ndarray:
+    """Camera depth (M, P) where the ray of pixel (u, v) enters each box; inf where it misses.
+
+    Slab test in each box's own frame. The ray directions have z = 1 in the camera frame, so the ray
+    parameter is the camera depth Z and compares directly with the depth image.
+    """
+    dirs_cam = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones_like(u)], axis=-1)
+    R, o = T_map_camera[:3, :3], T_map_camera[:3, 3]
+    dirs_map = dirs_cam @ R.T  # (P, 3)
+    c, s = np.cos(boxes.yaw), np.sin(boxes.yaw)
+    # Rotate into each box frame: x' = c x + s y, y' = -s x + c y (R_box^T).
+    rel = o - boxes.center  # (M, 3)
+    o_box = np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1], rel[:, 2]], -1)
+    dx = c[:, None] * dirs_map[None, :, 0] + s[:, None] * dirs_map[None, :, 1]
+    dy = -s[:, None] * dirs_map[None, :, 0] + c[:, None] * dirs_map[None, :, 1]
+    dz = np.broadcast_to(dirs_map[None, :, 2], dx.shape)
+    half = boxes.size / 2
+    tmin = np.full(dx.shape, -np.inf)
+    tmax = np.full(dx.shape, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for axis, d in enumerate((dx, dy, dz)):
+            inv = 1.0 / np.where(np.abs(d) < 1e-12, 1e-12, d)
+            t1 = (-half[:, axis, None] - o_box[:, axis, None]) * inv
+            t2 = (half[:, axis, None] - o_box[:, axis, None]) * inv
+            tmin = np.maximum(tmin, np.minimum(t1, t2))
+            tmax = np.minimum(tmax, np.maximum(t1, t2))
+    entry = np.maximum(tmin, 0.0)
+    return np.where(tmax >= entry, entry, np.inf)
+
+
+def visible_pixels(
+    boxes: Boxes,
+    T_map_camera: np.ndarray,
+    depth_m: np.ndarray,
+    intr: Intrinsics,
+    step: int,
+    depth_tolerance: float,
+    depth_range: tuple[float, float],
+) -> np.ndarray:
+    """Pixels (M,) of each box that the camera should see: the occupancy test of a non-detection.
+
+    A pixel of box m counts when its ray enters m first among the given boxes (not hidden by other
+    map objects), within the depth range, and the observed depth there has a reading that is not
+    nearer than the box surface by more than ``depth_tolerance`` (not hidden by something that is
+    not in the map, such as a person). Counted at one ray per step x step block and scaled back to
+    pixels.
+    """
+    m = len(boxes)
+    if m == 0:
+        return np.zeros(0)
+    u, v = ray_grid(intr, step)
+    entry = box_entry_depths(boxes, T_map_camera, intr, u, v)  # (M, P)
+    first = entry <= entry.min(axis=0, keepdims=True)
+    obs = depth_m[v.astype(int), u.astype(int)]
+    seen = (
+        first
+        & np.isfinite(entry)
+        & (entry >= depth_range[0])
+        & (entry <= depth_range[1])
+        & (obs > 0)
+        & (obs >= entry - depth_tolerance)
+    )
+    return seen.sum(axis=1) * float(step * step)

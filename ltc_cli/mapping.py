@@ -1,0 +1,438 @@
+"""The semantic map in memory and the per-frame pipeline that runs the four stages on it.
+
+No I/O here: the map store (store.py) saves and loads :class:`SemanticMap`; the CLI drives
+:class:`Mapper` frame by frame.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .association import nearest_under_threshold, thresholds_for
+from .geometry import Boxes, invert_pose
+from .integration import Box, fuse_scores, integrate_box, non_detection_vector
+from .maintenance import in_view, visible_pixels
+from .modeling import model_detections
+from .types import Intrinsics
+
+ACTIVE, REMOVED, MERGED = 0, 1, 2
+STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
+
+# Columns of the object table: name -> (per-object shape suffix, dtype). "scores" is (C+1,).
+_COLUMNS = {
+    "center": ((3,), np.float64),
+    "yaw": ((), np.float64),
+    "size": ((3,), np.float64),
+    "visible": ((8,), bool),
+    "defined": ((), bool),
+    "n_det": ((), np.int64),
+    "n_nondet": ((), np.int64),
+    "status": ((), np.int8),
+    "first_session": ((), np.int64),
+    "first_frame": ((), np.int64),
+    "last_session": ((), np.int64),
+    "last_frame": ((), np.int64),
+}
+
+
+class ObjectTable:
+    """Every object the map ever held, as columns (structure of arrays); row r has id r + 1.
+
+    Removed and merged objects stay in the table with their status, so nothing is ever lost.
+    """
+
+    def __init__(self, n_classes: int, capacity: int = 64):
+        self.n_classes = n_classes
+        self.n = 0
+        self.cols: dict[str, np.ndarray] = {}
+        for name, (shape, dtype) in _COLUMNS.items():
+            self.cols[name] = np.zeros((capacity,) + shape, dtype=dtype)
+        self.cols["scores"] = np.zeros((capacity, n_classes + 1))
+
+    def __getattr__(self, name):
+        cols = self.__dict__.get("cols")
+        if cols is not None and name in cols:
+            return cols[name][: self.n]
+        raise AttributeError(name)
+
+    @property
+    def ids(self) -> np.ndarray:
+        return np.arange(1, self.n + 1, dtype=np.int64)
+
+    def append(self, **values) -> int:
+        if self.n == len(self.cols["yaw"]):
+            for name, arr in self.cols.items():
+                grown = np.zeros((max(2 * len(arr), 64),) + arr.shape[1:], dtype=arr.dtype)
+                grown[: self.n] = arr[: self.n]
+                self.cols[name] = grown
+        row = self.n
+        self.n += 1
+        for name, value in values.items():
+            self.cols[name][row] = value
+        return row
+
+    def boxes(self, rows) -> Boxes:
+        c = self.cols
+        return Boxes(c["center"][rows], c["yaw"][rows], c["size"][rows], c["visible"][rows])
+
+    def box(self, row) -> Box:
+        c = self.cols
+        return Box(c["center"][row].copy(), float(c["yaw"][row]), c["size"][row].copy(),
+                   c["visible"][row].copy(), bool(c["defined"][row]))
+
+    def set_box(self, row, box: Box) -> None:
+        c = self.cols
+        c["center"][row], c["yaw"][row], c["size"][row] = box.center, box.yaw, box.size
+        c["visible"][row], c["defined"][row] = box.visible, box.defined
+
+    @classmethod
+    def from_columns(cls, columns: dict) -> "ObjectTable":
+        scores = np.asarray(columns["scores"], dtype=np.float64)
+        t = cls(scores.shape[1] - 1, capacity=max(len(scores), 64))
+        t.n = len(scores)
+        t.cols["scores"][: t.n] = scores
+        for name in _COLUMNS:
+            t.cols[name][: t.n] = columns[name]
+        return t
+
+    def columns(self) -> dict:
+        return {name: arr[: self.n] for name, arr in self.cols.items()}
+
+
+class GridIndex:
+    """Active objects by the XY grid cells their footprint touches.
+
+    Per-frame queries touch only the cells around the camera, so the cost of a frame does not grow
+    with the number of objects elsewhere in the map.
+    """
+
+    def __init__(self, cell: float):
+        self.cell = float(cell)
+        self.cells: dict[tuple, set] = defaultdict(set)
+        self.where: dict[int, list] = {}
+
+    def _cells_of(self, center, size):
+        r = 0.5 * float(np.hypot(size[0], size[1]))
+        i0, i1 = int(np.floor((center[0] - r) / self.cell)), int(np.floor((center[0] + r) / self.cell))
+        j0, j1 = int(np.floor((center[1] - r) / self.cell)), int(np.floor((center[1] + r) / self.cell))
+        return [(i, j) for i in range(i0, i1 + 1) for j in range(j0, j1 + 1)]
+
+    def insert(self, row: int, center, size) -> None:
+        self.remove(row)
+        cells = self._cells_of(center, size)
+        for key in cells:
+            self.cells[key].add(row)
+        self.where[row] = cells
+
+    def remove(self, row: int) -> None:
+        for key in self.where.pop(row, ()):
+            bucket = self.cells.get(key)
+            if bucket is not None:
+                bucket.discard(row)
+                if not bucket:
+                    del self.cells[key]
+
+    def query(self, xmin, xmax, ymin, ymax) -> np.ndarray:
+        found: set = set()
+        for i in range(int(np.floor(xmin / self.cell)), int(np.floor(xmax / self.cell)) + 1):
+            for j in range(int(np.floor(ymin / self.cell)), int(np.floor(ymax / self.cell)) + 1):
+                bucket = self.cells.get((i, j))
+                if bucket:
+                    found |= bucket
+        # Sorted, so that the order of candidates (and so the map) never depends on set order.
+        return np.array(sorted(found), dtype=np.int64)
+
+
+@dataclass
+class Event:
+    session: int
+    frame: int
+    frame_key: str
+    kind: str  # created | updated | merged | non-detection | removed
+    object_id: int
+    other_id: int = 0
+    detail: str = ""
+
+
+@dataclass
+class SemanticMap:
+    """Everything a map file holds, in memory."""
+
+    classes: list[str]
+    objects: ObjectTable
+    up_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    events: list[Event] = field(default_factory=list)
+    sessions: list[dict] = field(default_factory=list)
+    frame_keys: set = field(default_factory=set)
+    created: str = ""
+
+    @classmethod
+    def new(cls, classes: list[str]) -> "SemanticMap":
+        return cls(list(classes), ObjectTable(len(classes)))
+
+    @property
+    def class_vector_names(self) -> list[str]:
+        return list(self.classes) + ["other"]
+
+    def active_rows(self) -> np.ndarray:
+        return np.flatnonzero(self.objects.status == ACTIVE)
+
+
+@dataclass
+class FrameResult:
+    detections: int = 0
+    boxes: int = 0
+    matched: int = 0
+    created: int = 0
+    merged: int = 0
+    non_detections: int = 0
+    removed: int = 0
+    timings: dict = field(default_factory=dict)
+
+
+class ClassMapper:
+    """Turns a detector's score vectors (K,) into the map's class vectors (C+1,), other last.
+
+    Scores of classes that the map does not hold are dropped. The probability mass a detector leaves
+    unassigned (1 - sum) is spread evenly over every entry but the top one: the least informative
+    completion, which neither favours another class nor pushes the object towards removal.
+    """
+
+    def __init__(self, detector_classes: list[str], map_classes: list[str]):
+        pos = {c: i for i, c in enumerate(map_classes)}
+        self.src = np.array([i for i, c in enumerate(detector_classes) if c in pos], dtype=int)
+        self.dst = np.array([pos[detector_classes[i]] for i in self.src], dtype=int)
+        self.size = len(map_classes) + 1
+
+    def __call__(self, scores: np.ndarray):
+        v = np.zeros(self.size)
+        np.add.at(v, self.dst, np.asarray(scores, dtype=np.float64)[self.src])
+        total = v.sum()
+        if total <= 0:
+            return None
+        if total > 1:
+            return v / total
+        top = int(v.argmax())
+        rest = np.ones(self.size, dtype=bool)
+        rest[top] = False
+        v[rest] += (1.0 - total) / rest.sum()
+        return v
+
+
+class Mapper:
+    """Runs the four stages of LTC-Mapping frame after frame on a :class:`SemanticMap`."""
+
+    def __init__(self, smap: SemanticMap, config: dict, metric, policy, session: int = 0):
+        self.map = smap
+        self.cfg = config
+        self.metric = metric
+        self.policy = policy
+        self.session = session
+        self.index = GridIndex(config["index"]["cell_size"])
+        t = smap.objects
+        for row in smap.active_rows():
+            self.index.insert(int(row), t.center[row], t.size[row])
+        self.n_classes = len(smap.classes)
+        self.nondet_vector = non_detection_vector(self.n_classes, config["maintenance"]["v_other"])
+
+    # -- helpers -----------------------------------------------------------------------------
+    def _weight(self, row: int) -> float:
+        t = self.map.objects
+        d = float(t.n_det[row] + t.n_nondet[row])
+        cap = self.cfg["integration"]["max_weight"]
+        return d if cap is None else min(d, float(cap))
+
+    def _top_class(self, scores: np.ndarray) -> np.ndarray:
+        return np.asarray(scores)[..., :-1].argmax(axis=-1)
+
+    def _log(self, frame_index, frame_key, kind, obj, other=0, detail=""):
+        self.map.events.append(Event(self.session, frame_index, frame_key, kind, int(obj), int(other), detail))
+
+    def _candidates(self, T_map_camera, T_camera_map, intr, max_depth) -> np.ndarray:
+        cam = T_map_camera[:3, 3]
+        reach = max_depth + 0.5
+        rows = self.index.query(cam[0] - reach, cam[0] + reach, cam[1] - reach, cam[1] + reach)
+        if rows.size == 0:
+            return rows
+        keep = in_view(self.map.objects.boxes(rows), T_camera_map, intr, max_depth)
+        return rows[keep]
+
+    def _distances(self, det_boxes: Boxes, k: int, rows: np.ndarray) -> np.ndarray:
+        return self.metric.distance(det_boxes.take(slice(k, k + 1)), self.map.objects.boxes(rows))
+
+    # -- the pipeline ------------------------------------------------------------------------
+    def process_frame(
+        self,
+        frame_index: int,
+        frame_key: str,
+        masks: list[np.ndarray],
+        scores: list[np.ndarray],
+        depth_m: np.ndarray,
+        T_map_camera: np.ndarray,
+        intr: Intrinsics,
+        depth_range: tuple[float, float],
+        clock=None,
+    ) -> FrameResult:
+        """Model, associate, integrate and maintain one frame.
+
+        masks: list of (H, W) bool; scores: list of (C+1,) class vectors over the map's classes.
+        T_map_camera: (4, 4) camera-to-map pose (up rotation already applied).
+        """
+        import time
+
+        clock = clock or time.perf_counter
+        res = FrameResult(detections=len(masks))
+        cfg, t = self.cfg, self.map.objects
+        a_cfg = cfg["association"]
+        T_camera_map = invert_pose(T_map_camera)
+
+        t0 = clock()
+        modeled = model_detections(masks, depth_m, intr, T_map_camera, cfg["modeling"], depth_range)
+        res.boxes = len(modeled.source)
+        t1 = clock()
+
+        # Stage 2 + 3: each detection takes the nearest candidate under the threshold.
+        cand = self._candidates(T_map_camera, T_camera_map, intr, depth_range[1])
+        cand_list = list(cand)
+        matched_rows: set = set()
+        new_rows: list = []
+        t_assoc = 0.0
+        for k in range(len(modeled.source)):
+            ta = clock()
+            s_det = scores[int(modeled.source[k])]
+            det_box = Box(modeled.boxes.center[k], float(modeled.boxes.yaw[k]), modeled.boxes.size[k],
+                          modeled.boxes.visible[k], bool(modeled.defined[k]))
+            rows = np.array(cand_list, dtype=np.int64)
+            j = -1
+            if rows.size:
+                dist = self._distances(modeled.boxes, k, rows)
+                thr = thresholds_for(int(self._top_class(s_det)), self._top_class(t.scores[rows]),
+                                     a_cfg["threshold_same_class"], a_cfg["threshold_other_class"])
+                best = nearest_under_threshold(dist, thr)
+                j = int(rows[best]) if best >= 0 else -1
+            t_assoc += clock() - ta
+            if j >= 0:
+                self._integrate(j, det_box, s_det, 1.0, frame_index, frame_key)
+                matched_rows.add(j)
+                res.matched += 1
+            else:
+                row = t.append(
+                    center=det_box.center, yaw=det_box.yaw, size=det_box.size, visible=det_box.visible,
+                    defined=det_box.defined, scores=s_det, n_det=1, n_nondet=0, status=ACTIVE,
+                    first_session=self.session, first_frame=frame_index,
+                    last_session=self.session, last_frame=frame_index,
+                )
+                self.index.insert(row, det_box.center, det_box.size)
+                self._log(frame_index, frame_key, "created", row + 1)
+                cand_list.append(row)
+                new_rows.append(row)
+                matched_rows.add(row)
+                res.created += 1
+        t2 = clock()
+
+        # Stage 4: candidates that should have been seen and were not get a non-detection (eq. 4).
+        in_view_rows = np.array(cand_list, dtype=np.int64)
+        if in_view_rows.size:
+            m_cfg = cfg["maintenance"]
+            vis_px = visible_pixels(t.boxes(in_view_rows), T_map_camera, depth_m, intr,
+                                    m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range)
+            matched = np.array([r in matched_rows for r in in_view_rows])
+            scale = (intr.width * intr.height) / (640 * 480)
+            nondet = self.policy.non_detections(matched, vis_px, m_cfg["min_visible_pixels"] * scale)
+            for row in in_view_rows[np.asarray(nondet, dtype=bool) & ~matched]:
+                res.non_detections += 1
+                if self._non_detection(int(row), frame_index, frame_key):
+                    res.removed += 1
+        t3 = clock()
+
+        if a_cfg["merge"]:
+            res.merged = self._merge_in_view(frame_index, frame_key, T_camera_map, intr, depth_range[1])
+        t4 = clock()
+        res.timings = {"modeling": t1 - t0, "association": t_assoc, "integration": t2 - t1 - t_assoc,
+                       "maintenance": t3 - t2, "merge": t4 - t3}
+        return res
+
+    def _integrate(self, row, det_box: Box, s_det, w_det, frame_index, frame_key, log=True):
+        t = self.map.objects
+        i_cfg = self.cfg["integration"]
+        obj = t.box(row)
+        new = integrate_box(det_box, obj, w_det, self._weight(row), i_cfg["erosion"],
+                            self.cfg["modeling"]["min_extent"])
+        t.set_box(row, new)
+        t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], self._weight(row))  # eq. 3
+        t.cols["n_det"][row] += 1
+        t.cols["last_session"][row] = self.session
+        t.cols["last_frame"][row] = frame_index
+        self.index.insert(row, new.center, new.size)
+        if log:
+            self._log(frame_index, frame_key, "updated", row + 1)
+
+    def _non_detection(self, row, frame_index, frame_key) -> bool:
+        """Fuse a non-detection into ``row`` (eqs. 3-4); remove it when `other` leads. True if removed."""
+        t = self.map.objects
+        s = fuse_scores(self.nondet_vector, t.scores[row], self._weight(row))
+        t.cols["scores"][row] = s
+        t.cols["n_nondet"][row] += 1
+        self._log(frame_index, frame_key, "non-detection", row + 1)
+        if int(np.argmax(s)) == self.n_classes:
+            t.cols["status"][row] = REMOVED
+            self.index.remove(row)
+            top = int(s[:-1].argmax())
+            detail = (f"other {s[-1]:.3f} > {self.map.classes[top]} {s[top]:.3f} after "
+                      f"{int(t.n_nondet[row])} non-detections and {int(t.n_det[row])} detections")
+            self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
+            return True
+        return False
+
+    def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
+        """Instance de-duplication: in-view map objects that now match each other become one."""
+        t = self.map.objects
+        rows = self._candidates(invert_pose(T_camera_map), T_camera_map, intr, max_depth)
+        if rows.size < 2:
+            return 0
+        a_cfg = self.cfg["association"]
+        boxes = t.boxes(rows)
+        top = self._top_class(t.scores[rows])
+        pairs = []
+        for a in range(len(rows) - 1):
+            rest = np.arange(a + 1, len(rows))
+            dist = self.metric.distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
+            thr = thresholds_for(int(top[a]), top[rest], a_cfg["threshold_same_class"],
+                                 a_cfg["threshold_other_class"])
+            for b in np.flatnonzero(dist <= thr):
+                pairs.append((float(dist[b]), int(rows[a]), int(rows[rest[b]])))
+        merged = 0
+        gone: set = set()
+        for _, ra, rb in sorted(pairs):
+            if ra in gone or rb in gone:
+                continue
+            keep, drop = (ra, rb) if ra < rb else (rb, ra)  # the older object keeps its id
+            self._absorb(keep, drop, frame_index, frame_key)
+            gone.add(drop)
+            merged += 1
+        return merged
+
+    def _absorb(self, keep, drop, frame_index, frame_key) -> None:
+        t = self.map.objects
+        w_keep, w_drop = self._weight(keep), self._weight(drop)
+        i_cfg = self.cfg["integration"]
+        new = integrate_box(t.box(drop), t.box(keep), w_drop, w_keep, i_cfg["erosion"],
+                            self.cfg["modeling"]["min_extent"])
+        t.set_box(keep, new)
+        # Eq. 3 generalised to two map objects: the observation-weighted mean of both vectors.
+        s = w_keep * t.scores[keep] + w_drop * t.scores[drop]
+        t.cols["scores"][keep] = s / s.sum()
+        for col in ("n_det", "n_nondet"):
+            t.cols[col][keep] += t.cols[col][drop]
+        if (t.first_session[drop], t.first_frame[drop]) < (t.first_session[keep], t.first_frame[keep]):
+            t.cols["first_session"][keep] = t.first_session[drop]
+            t.cols["first_frame"][keep] = t.first_frame[drop]
+        t.cols["last_session"][keep] = self.session
+        t.cols["last_frame"][keep] = frame_index
+        t.cols["status"][drop] = MERGED
+        self.index.remove(drop)
+        self.index.insert(keep, new.center, new.size)
+        self._log(frame_index, frame_key, "merged", keep + 1, drop + 1)

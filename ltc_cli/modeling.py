@@ -1,0 +1,301 @@
+"""Stage 1, object modeling: instance masks + depth -> Z-oriented boxes with vertex visibility.
+
+Pure numpy / scipy over arrays; no I/O. Section 1 of DESIGN.md and section 3.1 of the paper.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from .geometry import EDGES_BY_AXIS, Boxes, backproject, fit_box, invert_pose, project, transform
+from .types import Intrinsics
+
+# Half of the 26-neighbourhood: each undirected voxel adjacency is found once.
+_HALF_NEIGHBOURS = np.array(
+    [
+        (dx, dy, dz)
+        for dx in (-1, 0, 1)
+        for dy in (-1, 0, 1)
+        for dz in (-1, 0, 1)
+        if (dx, dy, dz) > (0, 0, 0)
+    ]
+)
+
+
+def thin_mask(mask: np.ndarray, max_iterations: int, fraction: float) -> np.ndarray:
+    """Thin a (H, W) bool mask by k iterations of 3x3 erosion, k = min(max, fraction * short side).
+
+    The number of iterations follows the mask's own size so that a small, far object keeps most of
+    its pixels while a large one loses the boundary band where masks bleed onto neighbours.
+    k iterations of a 3x3 erosion equal one (2k+1)x(2k+1) minimum filter, which is separable, so
+    the work is done on the mask's bounding box only.
+    """
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return mask
+    cols = np.flatnonzero(mask.any(axis=0))
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    k = int(min(max_iterations, fraction * min(r1 - r0, c1 - c0)))
+    if k <= 0:
+        return mask
+    crop = mask[r0:r1, c0:c1].view(np.uint8)
+    thinned = ndimage.minimum_filter(crop, size=2 * k + 1, mode="constant", cval=0)
+    out = np.zeros_like(mask)
+    out[r0:r1, c0:c1] = thinned.astype(bool)
+    return out
+
+
+def mask_pixels(mask: np.ndarray, depth_m: np.ndarray, max_points: int, min_depth: float, max_depth: float):
+    """A regular subsample of the mask's pixels with depth in range: (u (N,), v (N,), z (N,))."""
+    v, u = np.nonzero(mask)
+    if u.size == 0:
+        return u, v, np.zeros(0, dtype=np.float32)
+    stride = int(np.ceil(np.sqrt(u.size / max_points)))
+    if stride > 1:
+        keep = ((u % stride) == 0) & ((v % stride) == 0)
+        u, v = u[keep], v[keep]
+    z = depth_m[v, u]
+    ok = (z > min_depth) & (z < max_depth)
+    return u[ok], v[ok], z[ok]
+
+
+def voxel_components(points_xyz: np.ndarray, group: np.ndarray, eps: float):
+    """Connected components of occupied voxels of size eps, never joining different groups.
+
+    DBSCAN with min_samples = 1 on grid neighbours: two points are linked when their voxels touch
+    (26-neighbourhood). Any two points closer than eps are in touching voxels, so every DBSCAN
+    (min_samples = 1) cluster lies inside one component. Returns labels (N,) int.
+    """
+    n = len(points_xyz)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    ijk = np.floor(points_xyz / eps).astype(np.int64)
+    ijk -= ijk.min(axis=0) - 1  # >= 1, so a -1 neighbour offset never borrows from another field
+    span = int(ijk.max()) + 2
+    if span >= 1 << 17 or int(group.max()) >= 1 << 10:
+        # Too wide for packed keys (kilometres of points): exact DBSCAN is still correct.
+        return _tree_components(points_xyz, group, eps)
+    bx, by = np.int64(1) << np.int64(34), np.int64(1) << np.int64(17)
+    keys = (group.astype(np.int64) << np.int64(51)) + ijk[:, 0] * bx + ijk[:, 1] * by + ijk[:, 2]
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    offsets = _HALF_NEIGHBOURS @ np.array([bx, by, 1], dtype=np.int64)
+    rows, cols = [], []
+    for off in offsets:
+        target = uniq + off
+        pos = np.searchsorted(uniq, target)
+        pos_c = np.minimum(pos, len(uniq) - 1)
+        hit = uniq[pos_c] == target
+        rows.append(np.flatnonzero(hit))
+        cols.append(pos_c[hit])
+    r = np.concatenate(rows)
+    c = np.concatenate(cols)
+    m = len(uniq)
+    graph = coo_matrix((np.ones(len(r), dtype=np.int8), (r, c)), shape=(m, m))
+    _, vox_labels = connected_components(graph, directed=False)
+    return vox_labels[inverse.ravel()]
+
+
+def _tree_components(points_xyz, group, eps):
+    tree = cKDTree(points_xyz)
+    pairs = tree.query_pairs(eps, output_type="ndarray")
+    pairs = pairs[group[pairs[:, 0]] == group[pairs[:, 1]]]
+    n = len(points_xyz)
+    graph = coo_matrix((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def dbscan_labels(points_xyz: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
+    """Exact DBSCAN (Ester et al. 1996): labels (N,), -1 for noise.
+
+    Core points have at least min_samples points (themselves included) within eps; clusters are the
+    connected components of core points; a border point joins the cluster of a core neighbour.
+    """
+    n = len(points_xyz)
+    labels = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return labels
+    tree = cKDTree(points_xyz)
+    pairs = tree.query_pairs(eps, output_type="ndarray")
+    counts = np.bincount(pairs.ravel(), minlength=n) + 1
+    core = counts >= min_samples
+    cc = pairs[core[pairs[:, 0]] & core[pairs[:, 1]]]
+    graph = coo_matrix((np.ones(len(cc), dtype=np.int8), (cc[:, 0], cc[:, 1])), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    labels[core] = comp[core]
+    # Border points: the first core neighbour in pair order (DBSCAN's border assignment is order
+    # dependent by definition; any core neighbour is a valid answer).
+    for a, b in ((0, 1), (1, 0)):
+        sel = core[pairs[:, a]] & ~core[pairs[:, b]]
+        tgt = pairs[sel, b]
+        src = pairs[sel, a]
+        unset = labels[tgt] == -1
+        labels[tgt[unset]] = comp[src[unset]]
+    # Renumber densely.
+    uniq = np.unique(labels[labels >= 0])
+    remap = np.full(int(labels.max()) + 2 if n else 1, -1)
+    remap[uniq] = np.arange(len(uniq))
+    labels[labels >= 0] = remap[labels[labels >= 0]]
+    return labels
+
+
+def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
+    """For each group (detection), the indices of its largest cluster, or None if too small.
+
+    ``voxel``: voxel components over all groups at once, then components with fewer than
+    min_samples points are noise. ``dbscan``: exact DBSCAN per group. Returns a list indexed by
+    group id.
+    """
+    n_groups = int(group.max()) + 1 if len(group) else 0
+    out: list = [None] * n_groups
+    if method == "dbscan":
+        for g in range(n_groups):
+            idx = np.flatnonzero(group == g)
+            labels = dbscan_labels(points_xyz[idx], eps, min_samples)
+            if (labels >= 0).any():
+                best = np.bincount(labels[labels >= 0]).argmax()
+                out[g] = idx[labels == best]
+        return out
+    labels = voxel_components(points_xyz, group, eps)
+    counts = np.bincount(labels)
+    # The largest component of each group: sort by (group, -count) and take the first per group.
+    comp_group = np.zeros(len(counts), dtype=np.int64)
+    comp_group[labels] = group
+    order = np.lexsort((-counts, comp_group))
+    first = order[np.r_[True, comp_group[order][1:] != comp_group[order][:-1]]]
+    for comp in first:
+        if counts[comp] >= min_samples:
+            out[int(comp_group[comp])] = np.flatnonzero(labels == comp)
+    return out
+
+
+def vertex_visibility(
+    corners_world: np.ndarray,
+    T_camera_world: np.ndarray,
+    depth_m: np.ndarray,
+    intr: Intrinsics,
+    border: float,
+    occlusion_tolerance: float,
+    window: int = 2,
+) -> np.ndarray:
+    """Visible flags (M, 8) of box corners (M, 8, 3) seen from a camera.
+
+    A vertex is not visible when it falls behind the camera, outside the image minus ``border``
+    pixels, or when the observed depth around its pixel (median of the valid readings in a
+    (2 window + 1)^2 patch, robust to single flying pixels) is nearer than the vertex by more than
+    ``occlusion_tolerance`` (Z-buffer test). Pixels with no reading do not occlude.
+    """
+    shape = corners_world.shape[:-1]
+    pts = transform(T_camera_world, corners_world.reshape(-1, 3))
+    u, v, z = project(pts, intr)
+    h, w = depth_m.shape
+    inside = (z > 1e-6) & (u >= border) & (u < w - border) & (v >= border) & (v < h - border)
+    vis = inside.copy()
+    idx = np.flatnonzero(inside)
+    if idx.size:
+        ui = np.clip(np.round(u[idx]).astype(int), 0, w - 1)
+        vi = np.clip(np.round(v[idx]).astype(int), 0, h - 1)
+        d = np.arange(-window, window + 1)
+        uu = np.clip(ui[:, None, None] + d[None, None, :], 0, w - 1)
+        vv = np.clip(vi[:, None, None] + d[None, :, None], 0, h - 1)
+        patch = depth_m[vv, uu].reshape(len(idx), -1).astype(np.float64)
+        valid = patch > 0
+        nvalid = valid.sum(axis=1)
+        patch[~valid] = np.inf
+        patch.sort(axis=1)
+        has = nvalid > 0
+        med = np.full(len(idx), np.inf)
+        med[has] = patch[has, (nvalid[has] - 1) // 2]
+        occluded = med < z[idx] - occlusion_tolerance
+        vis[idx[occluded]] = False
+    return vis.reshape(shape)
+
+
+def defined_flags(visible: np.ndarray) -> np.ndarray:
+    """A box is Defined (M,) when, for each of its 3 axes, some edge along it has both ends visible."""
+    out = np.ones(visible.shape[:-1], dtype=bool)
+    for edges in EDGES_BY_AXIS:
+        out &= (visible[..., edges[:, 0]] & visible[..., edges[:, 1]]).any(axis=-1)
+    return out
+
+
+@dataclass
+class ModeledDetections:
+    """The boxes of one frame's detections that survived modeling.
+
+    boxes: Boxes (M,) in the map frame, with visible flags; defined (M,) bool;
+    source (M,) index of each box's detection in the detector's list; n_points (M,).
+    """
+
+    boxes: Boxes
+    defined: np.ndarray
+    source: np.ndarray
+    n_points: np.ndarray
+
+
+def model_detections(
+    masks: list[np.ndarray],
+    depth_m: np.ndarray,
+    intr: Intrinsics,
+    T_map_camera: np.ndarray,
+    p: dict,
+    depth_range: tuple[float, float],
+) -> ModeledDetections:
+    """Masks (H, W) of one frame -> boxes in the map frame (DESIGN.md 1.1).
+
+    thinning -> eq. 1 back-projection of a subsample -> map frame -> largest cluster -> exact
+    minimum-area Z-oriented box -> drop specks and out-of-range boxes -> vertex visibility ->
+    Defined.
+    """
+    min_d, max_d = depth_range
+    pts_list, groups, sources = [], [], []
+    for i, mask in enumerate(masks):
+        thinned = thin_mask(mask, p["thin_max_iterations"], p["thin_fraction"])
+        u, v, z = mask_pixels(thinned, depth_m, p["max_points"], min_d, max_d)
+        if len(z) < p["min_samples"]:
+            continue
+        pts_cam = backproject(u, v, z, intr)
+        pts_list.append(transform(T_map_camera, pts_cam))
+        groups.append(np.full(len(z), len(sources)))
+        sources.append(i)
+    empty = ModeledDetections(
+        Boxes(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 8), bool)),
+        np.zeros(0, bool), np.zeros(0, int), np.zeros(0, int),
+    )
+    if not pts_list:
+        return empty
+    points = np.concatenate(pts_list)
+    group = np.concatenate(groups)
+    clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"])
+    centers, yaws, sizes, src, npts = [], [], [], [], []
+    for g, idx in enumerate(clusters):
+        if idx is None:
+            continue
+        center, yaw, size = fit_box(points[idx])
+        if size.max() < p["min_extent"]:
+            continue
+        # A single view of a flat face has no thickness: pad thin sides to the minimum extent.
+        size = np.maximum(size, p["min_extent"])
+        centers.append(center)
+        yaws.append(yaw)
+        sizes.append(size)
+        src.append(sources[g])
+        npts.append(len(idx))
+    if not centers:
+        return empty
+    boxes = Boxes(np.array(centers), np.array(yaws), np.array(sizes), np.zeros((len(centers), 8), bool))
+    boxes.visible = vertex_visibility(
+        boxes.corners,
+        invert_pose(T_map_camera),
+        depth_m,
+        intr,
+        p["border"],
+        p["occlusion_tolerance"],
+        p["occlusion_window"],
+    )
+    return ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))

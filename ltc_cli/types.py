@@ -1,0 +1,94 @@
+"""Plain data passed between readers, detectors and the mapping stages (numpy arrays, no I/O)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole camera, no distortion; pixel (u, v) = (fx X/Z + cx, fy Y/Z + cy) in the OpenCV frame."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def K(self) -> np.ndarray:
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1.0]])
+
+
+@dataclass
+class Frame:
+    """One RGB-D frame, already checked by its reader.
+
+    depth_m: (H, W) float32 metres, 0 where there is no reading.
+    T_world_camera: (4, 4) camera-to-world pose in the recording's world frame.
+    rgb: (H, W, 3) uint8, or None when a detector does not need it.
+    """
+
+    key: str
+    index: int
+    depth_m: np.ndarray
+    T_world_camera: np.ndarray
+    intrinsics: Intrinsics
+    rgb: np.ndarray | None = None
+    rgb_path: str | None = None
+    depth_path: str | None = None
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass
+class Detection:
+    """One instance from a detector.
+
+    mask: (H, W) bool instance mask in the frame's image.
+    scores: (K,) class probabilities aligned with the detector's ``classes``; they may sum to less
+        than 1 (the rest is "none of these").
+    """
+
+    mask: np.ndarray
+    scores: np.ndarray
+
+
+@dataclass
+class FrameRef:
+    """A frame that is not loaded yet: ``load()`` reads and validates it (raises FrameError)."""
+
+    key: str
+    index: int
+    load: Callable[[], Frame]
+
+
+@dataclass
+class Recording:
+    """An opened recording: what a reader returns.
+
+    identity: a content hash of the recording's metadata and poses, so that the same recording
+        moved to another folder keeps its frame keys (re-ingesting is a no-op).
+    up: how to make the world z-up: None (already z-up), a 3-vector (the world's up direction), or
+        "estimate".
+    classes: the recording's class list, when it gives one.
+    """
+
+    path: str
+    format: str
+    identity: str
+    intrinsics: Intrinsics
+    frames: list[FrameRef]
+    up: object = None
+    classes: list[str] | None = None
+    depth_range: tuple[float, float] | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def __iter__(self) -> Iterator[FrameRef]:
+        return iter(self.frames)

@@ -1,0 +1,34 @@
+"""Built-in maintenance policies: ``non-detection`` (the paper's) and ``static`` (never removes)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ltc_cli import hookimpl
+
+
+class NonDetectionPolicy:
+    """An object in view, with enough pixels that the camera should have seen, that no detection
+    matched, gets a non-detection (eq. 4)."""
+
+    def __init__(self, options: dict):
+        pass
+
+    def non_detections(self, matched, visible_px, min_visible_pixels):
+        return ~np.asarray(matched, dtype=bool) & (np.asarray(visible_px) >= min_visible_pixels)
+
+
+class StaticPolicy:
+    """The static-world assumption: nothing is ever removed (a baseline to compare against)."""
+
+    def __init__(self, options: dict):
+        pass
+
+    def non_detections(self, matched, visible_px, min_visible_pixels):
+        return np.zeros(len(matched), dtype=bool)
+
+
+@hookimpl
+def register_policies(register):
+    register("non-detection", NonDetectionPolicy)
+    register("static", StaticPolicy)

@@ -1,0 +1,94 @@
+"""Detector ``recorded``: the detections stored in a recording's detections/ folder.
+
+Any external detector (or ground truth) can be replayed this way: one JSON file per frame with
+instances (class, score or full score vector, COCO RLE mask or a PNG of instance ids).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from ltc_cli import hookimpl, rle
+from ltc_cli.errors import FrameError, PluginError
+from ltc_cli.schemas import validate
+from ltc_cli.types import Detection, Frame
+
+
+class RecordedDetector:
+    def __init__(self, folder: Path, classes: list[str]):
+        self.folder = folder
+        self.classes = classes
+        self._index = {c: i for i, c in enumerate(classes)}
+
+    @classmethod
+    def from_options(cls, recording, options: dict) -> "RecordedDetector":
+        folder = Path(options.get("folder") or Path(recording.path) / "detections")
+        if not folder.is_dir():
+            raise PluginError("no detections/ folder: record detections or choose a model detector", folder)
+        classes = list(recording.classes or [])
+        if not classes:
+            # No class list in the recording: the vocabulary is every class the files mention.
+            seen = set()
+            for p in sorted(folder.glob("*.json")):
+                try:
+                    doc = json.loads(p.read_text())
+                    seen.update(inst["class"] for inst in doc.get("instances", []) if isinstance(inst, dict) and "class" in inst)
+                except (OSError, ValueError, AttributeError):
+                    continue  # reported when that frame is read
+            classes = sorted(seen)
+        return cls(folder, classes)
+
+    def detect(self, frame: Frame) -> list[Detection]:
+        path = self.folder / f"{frame.key}.json"
+        if not path.is_file():
+            raise FrameError("no recorded detections for this frame", path)
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise FrameError(f"not valid JSON ({exc})", path) from None
+        try:
+            validate(doc, "detections", path)
+        except Exception as exc:  # SchemaError for one frame: skip the frame, keep the map
+            raise FrameError(exc.message if hasattr(exc, "message") else str(exc), path) from None
+        h, w = frame.depth_m.shape
+        ids_img = None
+        if doc.get("masks_png"):
+            png = self.folder / doc["masks_png"]
+            try:
+                ids_img = np.asarray(Image.open(png))
+            except (OSError, ValueError) as exc:
+                raise FrameError(f"cannot read instance-id PNG ({exc})", png) from None
+            if ids_img.shape[:2] != (h, w):
+                raise FrameError(f"instance-id PNG is {ids_img.shape[1]}x{ids_img.shape[0]}, frame is {w}x{h}", png)
+        out = []
+        for n, inst in enumerate(doc["instances"]):
+            if "mask" in inst:
+                try:
+                    mask = rle.decode(inst["mask"])
+                except (ValueError, KeyError) as exc:
+                    raise FrameError(f"instances.{n}.mask: {exc}", path) from None
+                if mask.shape != (h, w):
+                    raise FrameError(f"instances.{n}.mask is {mask.shape[1]}x{mask.shape[0]}, frame is {w}x{h}", path)
+            elif ids_img is not None and "id" in inst:
+                mask = ids_img == inst["id"]
+            else:
+                raise FrameError(f"instances.{n} has no mask (give mask, or masks_png and id)", path)
+            scores = np.zeros(len(self.classes))
+            if "scores" in inst:
+                for name, p in inst["scores"].items():
+                    if name in self._index:
+                        scores[self._index[name]] = p
+            if inst["class"] in self._index and scores[self._index[inst["class"]]] == 0:
+                scores[self._index[inst["class"]]] = inst.get("score", 1.0)
+            if mask.any() and scores.sum() > 0:
+                out.append(Detection(mask, scores))
+        return out
+
+
+@hookimpl
+def register_detectors(register):
+    register("recorded", RecordedDetector.from_options)

@@ -1,0 +1,1 @@
+"""JSON Schemas of every file format ltc reads or writes."""
