@@ -28,41 +28,55 @@ _HALF_NEIGHBOURS = np.array(
 )
 
 
+def thin_iterations(mask_h: int, mask_w: int, max_iterations: int, fraction: float) -> int:
+    """Thinning iterations for a mask whose bounding box is mask_h x mask_w pixels."""
+    return int(min(max_iterations, fraction * min(mask_h, mask_w)))
+
+
 def thin_mask(mask: np.ndarray, max_iterations: int, fraction: float) -> np.ndarray:
     """Thin a (H, W) bool mask by k iterations of 3x3 erosion, k = min(max, fraction * short side).
 
     The number of iterations follows the mask's own size so that a small, far object keeps most of
     its pixels while a large one loses the boundary band where masks bleed onto neighbours.
     k iterations of a 3x3 erosion equal one (2k+1)x(2k+1) minimum filter, which is separable, so
-    the work is done on the mask's bounding box only.
+    the work is done on the mask's bounding box only. The image border does not erode.
     """
     rows = np.flatnonzero(mask.any(axis=1))
     if rows.size == 0:
         return mask
     cols = np.flatnonzero(mask.any(axis=0))
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    k = int(min(max_iterations, fraction * min(r1 - r0, c1 - c0)))
+    k = thin_iterations(r1 - r0, c1 - c0, max_iterations, fraction)
     if k <= 0:
         return mask
-    crop = mask[r0:r1, c0:c1].view(np.uint8)
-    thinned = ndimage.minimum_filter(crop, size=2 * k + 1, mode="constant", cval=0)
+    h, w = mask.shape
+    # A margin of k zeros around the mask, except where the image ends: a mask cut by the image
+    # border did not bleed there, and eroding it would move a cut edge inwards, where its vertices
+    # would pass the border test and a partial view would look complete.
+    R0, R1, C0, C1 = max(r0 - k, 0), min(r1 + k, h), max(c0 - k, 0), min(c1 + k, w)
+    crop = mask[R0:R1, C0:C1].view(np.uint8)
+    thinned = ndimage.minimum_filter(crop, size=2 * k + 1, mode="nearest")
     out = np.zeros_like(mask)
-    out[r0:r1, c0:c1] = thinned.astype(bool)
+    out[R0:R1, C0:C1] = thinned.astype(bool)
     return out
 
 
 def mask_pixels(mask: np.ndarray, depth_m: np.ndarray, max_points: int, min_depth: float, max_depth: float):
-    """A regular subsample of the mask's pixels with depth in range: (u (N,), v (N,), z (N,))."""
+    """A regular subsample of the mask's pixels with depth in range.
+
+    Returns (u (N,), v (N,), z (N,), stride): one pixel in stride x stride is kept so that at most
+    about max_points remain.
+    """
     v, u = np.nonzero(mask)
     if u.size == 0:
-        return u, v, np.zeros(0, dtype=np.float32)
-    stride = int(np.ceil(np.sqrt(u.size / max_points)))
+        return u, v, np.zeros(0, dtype=np.float32), 1
+    stride = max(1, int(np.ceil(np.sqrt(u.size / max_points))))
     if stride > 1:
         keep = ((u % stride) == 0) & ((v % stride) == 0)
         u, v = u[keep], v[keep]
     z = depth_m[v, u]
     ok = (z > min_depth) & (z < max_depth)
-    return u[ok], v[ok], z[ok]
+    return u[ok], v[ok], z[ok], stride
 
 
 def voxel_components(points_xyz: np.ndarray, group: np.ndarray, eps: float):
@@ -174,6 +188,23 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
     return out
 
 
+def _regrow(size, center, yaw, cam_xyz, pad_px, z_med, intr):
+    """Give back the width that thinning and subsampling took from each side of the mask.
+
+    pad_px pixels at depth z_med are pad_px z_med / f metres. Image rows map to world z; image
+    columns to the footprint axes in proportion to how square each axis is to the line of sight.
+    """
+    view = center[:2] - cam_xyz[:2]
+    n = np.hypot(view[0], view[1])
+    view = view / n if n > 1e-9 else np.array([1.0, 0.0])
+    c, s = np.cos(yaw), np.sin(yaw)
+    perp_x = abs(c * view[1] - s * view[0])
+    perp_y = abs(-s * view[1] - c * view[0])
+    grow_h = 2 * pad_px * z_med / intr.fx
+    grow_v = 2 * pad_px * z_med / intr.fy
+    return size + np.array([grow_h * perp_x, grow_h * perp_y, grow_v])
+
+
 def vertex_visibility(
     corners_world: np.ndarray,
     T_camera_world: np.ndarray,
@@ -253,12 +284,19 @@ def model_detections(
     Defined.
     """
     min_d, max_d = depth_range
-    pts_list, groups, sources = [], [], []
+    pts_list, groups, sources, pads = [], [], [], []
     for i, mask in enumerate(masks):
+        rows = np.flatnonzero(mask.any(axis=1))
+        if rows.size == 0:
+            continue
+        cols = np.flatnonzero(mask.any(axis=0))
+        k = thin_iterations(rows[-1] + 1 - rows[0], cols[-1] + 1 - cols[0], p["thin_max_iterations"], p["thin_fraction"])
         thinned = thin_mask(mask, p["thin_max_iterations"], p["thin_fraction"])
-        u, v, z = mask_pixels(thinned, depth_m, p["max_points"], min_d, max_d)
+        u, v, z, stride = mask_pixels(thinned, depth_m, p["max_points"], min_d, max_d)
         if len(z) < p["min_samples"]:
             continue
+        # Pixels lost at each side: the thinning band, and on average half a subsampling step.
+        pads.append((k + (stride - 1) / 2.0, float(np.median(z))))
         pts_cam = backproject(u, v, z, intr)
         pts_list.append(transform(T_map_camera, pts_cam))
         groups.append(np.full(len(z), len(sources)))
@@ -279,6 +317,8 @@ def model_detections(
         center, yaw, size = fit_box(points[idx])
         if size.max() < p["min_extent"]:
             continue
+        if p["compensate_thinning"]:
+            size = _regrow(size, center, yaw, T_map_camera[:3, 3], *pads[g], intr)
         # A single view of a flat face has no thickness: pad thin sides to the minimum extent.
         size = np.maximum(size, p["min_extent"])
         centers.append(center)

@@ -1,0 +1,219 @@
+"""Estimating a recording's up direction, for worlds that are not z-up (DESIGN.md section 2).
+
+Two cues, both pure numpy:
+
+1. The cameras' mean up axis. A hand-held or robot-mounted camera is mostly upright, so the camera's
+   -y axis (OpenCV frame: y points down in the image) averaged over the trajectory is a first guess
+   that is usually within a few tens of degrees of the true up.
+2. The floor. Depth of a few frames, back-projected to the world, holds large horizontal planes
+   (floor, table tops, seats). Among the planes whose normal is near the first guess, the floor is the
+   lowest one with a large support; its normal is the up direction, typically to a degree or two.
+
+``up_rotation`` turns the up direction into the rotation the map applies so that up becomes +z.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .geometry import rotation_between
+
+# Planes whose normal is further than this from the cameras' guess are walls or slopes, never floor.
+MAX_TILT_FROM_GUESS_DEG = 30.0
+# Point-to-plane distance (m) that counts as "on the plane": Kinect-class depth noise at 3-4 m is a
+# few centimetres, so tighter thresholds split the floor into slivers.
+INLIER_DISTANCE_M = 0.03
+# Depth readings outside this range are mostly noise (too near) or too sparse to hold a plane.
+DEPTH_RANGE_M = (0.2, 6.0)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    if not np.isfinite(n) or n < 1e-12:
+        raise ValueError("cannot normalise a zero or non-finite vector")
+    return v / n
+
+
+def cameras_up(T_world_camera: np.ndarray) -> np.ndarray:
+    """Mean up axis of the cameras: the mean of each camera's -y axis in world coordinates, (3,).
+
+    T_world_camera: (N, 4, 4) or (4, 4) camera-to-world poses (OpenCV camera axes).
+    """
+    T = np.asarray(T_world_camera, dtype=np.float64).reshape(-1, 4, 4)
+    if len(T) == 0:
+        raise ValueError("no camera poses")
+    ok = np.all(np.isfinite(T), axis=(1, 2))
+    if not ok.any():
+        raise ValueError("no finite camera poses")
+    down = T[ok, :3, 1]  # camera y axis (image down) in world coordinates, (N, 3)
+    mean_up = -down.mean(axis=0)
+    if np.linalg.norm(mean_up) < 0.1:
+        # Cameras rolled every which way cancel out; the first camera is as good a guess as any.
+        mean_up = -down[0]
+    return _unit(mean_up)
+
+
+def _world_points(
+    depth_samples: Sequence, intrinsics, max_points_per_frame: int, max_frames: int
+) -> np.ndarray:
+    """Back-project subsampled depth of up to ``max_frames`` frames to world points (P, 3)."""
+    samples = list(depth_samples)
+    if len(samples) > max_frames:
+        # Evenly spread frames see more of the floor than consecutive ones.
+        pick = np.linspace(0, len(samples) - 1, max_frames).round().astype(int)
+        samples = [samples[i] for i in pick]
+    intr_list = intrinsics if isinstance(intrinsics, (list, tuple)) else None
+    chunks = []
+    for i, sample in enumerate(samples):
+        depth_m, T_world_camera = sample[0], np.asarray(sample[1], dtype=np.float64)
+        intr = sample[2] if len(sample) > 2 else (intr_list[i] if intr_list else intrinsics)
+        if intr is None:
+            raise ValueError("depth samples need camera intrinsics")
+        if not np.all(np.isfinite(T_world_camera)):
+            continue
+        depth_m = np.asarray(depth_m)
+        h, w = depth_m.shape
+        # A regular pixel grid (not random pixels) keeps the estimate deterministic and even.
+        step = max(1, int(np.ceil(np.sqrt(h * w / max_points_per_frame))))
+        v, u = np.mgrid[step // 2 : h : step, step // 2 : w : step]
+        z = depth_m[v, u].astype(np.float64)
+        keep = np.isfinite(z) & (z > DEPTH_RANGE_M[0]) & (z < DEPTH_RANGE_M[1])
+        u, v, z = u[keep], v[keep], z[keep]
+        x = z * (u - intr.cx) / intr.fx
+        y = z * (v - intr.cy) / intr.fy
+        p_cam = np.stack([x, y, z], axis=1)
+        chunks.append(p_cam @ T_world_camera[:3, :3].T + T_world_camera[:3, 3])
+    if not chunks:
+        return np.zeros((0, 3))
+    return np.concatenate(chunks, axis=0)
+
+
+def _fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares plane n . p = d of points (P, 3): (n (3,), d)."""
+    c = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - c, full_matrices=False)
+    n = vt[2]
+    return n, float(n @ c)
+
+
+def _ransac_planes(
+    points: np.ndarray,
+    guess: np.ndarray,
+    rng: np.random.Generator,
+    max_planes: int,
+    iterations: int,
+    min_support: int,
+) -> list[tuple[np.ndarray, float, int]]:
+    """Sequential RANSAC for near-horizontal planes: [(n (3,) agreeing with guess, d, support)].
+
+    Each round finds the best-supported plane whose normal is within MAX_TILT_FROM_GUESS_DEG of the
+    guess, refits it by least squares, removes its inliers and looks again, so the floor and the
+    table tops come out as separate planes.
+    """
+    cos_max = np.cos(np.radians(MAX_TILT_FROM_GUESS_DEG))
+    planes = []
+    remaining = points
+    for _ in range(max_planes):
+        if len(remaining) < max(3, min_support):
+            break
+        idx = rng.integers(0, len(remaining), size=(iterations, 3))
+        a, b, c = remaining[idx[:, 0]], remaining[idx[:, 1]], remaining[idx[:, 2]]
+        normals = np.cross(b - a, c - a)  # (I, 3)
+        norms = np.linalg.norm(normals, axis=1)
+        valid = norms > 1e-9
+        normals[valid] /= norms[valid, None]
+        # Orient every hypothesis along the guess so that "lowest" compares like with like.
+        normals *= np.where(normals @ guess < 0, -1.0, 1.0)[:, None]
+        valid &= normals @ guess >= cos_max
+        if not valid.any():
+            break
+        normals, a = normals[valid], a[valid]
+        offsets = np.einsum("ij,ij->i", normals, a)
+        # (I, P) distances; I * P stays a few million floats with the caps of estimate_up.
+        support = (np.abs(remaining @ normals.T - offsets) < INLIER_DISTANCE_M).sum(axis=0)
+        best = int(np.argmax(support))
+        if support[best] < min_support:
+            break
+        n, d = normals[best], offsets[best]
+        for _refit in range(2):
+            inliers = np.abs(remaining @ n - d) < INLIER_DISTANCE_M
+            if inliers.sum() < 3:
+                break
+            n, d = _fit_plane(remaining[inliers])
+            if n @ guess < 0:
+                n, d = -n, -d
+        inliers = np.abs(remaining @ n - d) < INLIER_DISTANCE_M
+        if n @ guess >= cos_max and inliers.sum() >= min_support:
+            planes.append((n, float(d), int(inliers.sum())))
+        remaining = remaining[~inliers]
+    return planes
+
+
+def estimate_up(
+    frames_T_world_camera: np.ndarray,
+    depth_samples: Sequence | None = None,
+    intrinsics=None,
+    *,
+    max_frames: int = 8,
+    max_points_per_frame: int = 4000,
+    seed: int = 0,
+) -> np.ndarray:
+    """The world's up direction, a unit vector (3,) in world coordinates.
+
+    frames_T_world_camera: (N, 4, 4) camera-to-world poses; their mean -y axis is the first guess.
+    depth_samples: optional list of ``(depth_m (H, W), T_world_camera (4, 4))`` (or triples with
+        their own :class:`~ltc_cli.types.Intrinsics` third); when given, the guess is refined to the
+        normal of the floor: the lowest (along the guess) near-horizontal plane with enough support.
+    intrinsics: the :class:`~ltc_cli.types.Intrinsics` of the depth samples (one for all, or a list
+        aligned with them).
+
+    Deterministic: RANSAC uses a generator seeded with ``seed`` and a fixed pixel grid. Returns the
+    first guess when no plane is found (too little depth, or no horizontal surface in view).
+    """
+    guess = cameras_up(frames_T_world_camera)
+    if not depth_samples:
+        return guess
+    points = _world_points(depth_samples, intrinsics, max_points_per_frame, max_frames)
+    if len(points) < 100:
+        return guess
+    if len(points) > 20000:
+        # Enough for a plane; keeps the (iterations x points) distance matrix small.
+        points = points[np.random.default_rng(seed).choice(len(points), 20000, replace=False)]
+    rng = np.random.default_rng(seed)
+    # The floor rarely fills most of the view; 3 % of the points is a patch of a square metre or so
+    # at Kinect range, while still rejecting stray bits of furniture.
+    min_support = max(50, int(0.03 * len(points)))
+    planes = _ransac_planes(points, guess, rng, max_planes=5, iterations=300, min_support=min_support)
+    if not planes:
+        return guess
+    # A plane counts as a floor candidate only with a fair share of the largest plane's support, so a
+    # lone low step or rug edge does not win over the real floor.
+    largest = max(s for _, _, s in planes)
+    candidates = [p for p in planes if p[2] >= 0.25 * largest]
+    # Lowest along the guess: the offset d = n . p of the plane measured along its own normal, which
+    # agrees with the guess to within MAX_TILT_FROM_GUESS_DEG.
+    n, _, _ = min(candidates, key=lambda p: p[1])
+    return _unit(n)
+
+
+def estimate_up_from_frames(frames: Sequence, **kwargs) -> np.ndarray:
+    """``estimate_up`` from loaded :class:`~ltc_cli.types.Frame` objects (poses, depth, intrinsics)."""
+    frames = list(frames)
+    if not frames:
+        raise ValueError("no frames")
+    T = np.stack([f.T_world_camera for f in frames])
+    samples = [(f.depth_m, f.T_world_camera, f.intrinsics) for f in frames]
+    return estimate_up(T, samples, **kwargs)
+
+
+def up_rotation(up) -> np.ndarray:
+    """R (3, 3) rotating the world's ``up`` (3,) onto +z: p_map = R @ p_world."""
+    up = np.asarray(up, dtype=np.float64)
+    if up.shape != (3,) or not np.all(np.isfinite(up)) or np.linalg.norm(up) < 1e-12:
+        raise ValueError(f"up must be a finite non-zero 3-vector, got {up!r}")
+    return rotation_between(up, np.array([0.0, 0.0, 1.0]))
+
+
+__all__ = ["estimate_up", "estimate_up_from_frames", "cameras_up", "up_rotation"]

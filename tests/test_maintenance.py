@@ -1,0 +1,114 @@
+import numpy as np
+import pytest
+
+from ltc_cli import plugins
+from ltc_cli.config import defaults
+from ltc_cli.geometry import Boxes, invert_pose
+from ltc_cli.maintenance import in_view, visible_pixels
+from ltc_cli.mapping import ACTIVE, REMOVED, Mapper, SemanticMap
+from tests.scene import INTR, T_world_camera, face_rect, render
+
+CLASSES = ["chair", "table"]
+
+
+def make_mapper(cfg=None, policy="non-detection"):
+    cfg = cfg or defaults()
+    smap = SemanticMap.new(CLASSES)
+    metric = plugins.get("metrics", "vertex").factory(cfg["association"])
+    pol = plugins.get("policies", policy).factory(cfg["maintenance"])
+    return Mapper(smap, cfg, metric, pol)
+
+
+def add_object(mapper, center, size, scores, n_det):
+    t = mapper.map.objects
+    row = t.append(center=center, yaw=0.0, size=size, visible=np.ones(8, bool), defined=True,
+                   scores=scores, n_det=n_det, n_nondet=0, status=ACTIVE)
+    mapper.index.insert(row, np.asarray(center, float), np.asarray(size, float))
+    return row
+
+
+def empty_frame(mapper, depth, i):
+    return mapper.process_frame(i, f"f{i}", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+
+
+def test_visible_pixels_counts_the_projected_face():
+    # A 0.6 x 0.8 m face 2 m ahead covers (0.6 * 500 / 2) x (0.8 * 500 / 2) = 150 x 200 px.
+    b = Boxes(np.array([[2.2, 0, 0.6]]), np.zeros(1), np.array([[0.4, 0.6, 0.8]]), np.ones((1, 8), bool))
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    px = visible_pixels(b, T_world_camera(), depth, INTR, step=4, depth_tolerance=0.2, depth_range=(0.3, 6.0))
+    assert px[0] == pytest.approx(150 * 200, rel=0.05)
+    # Hidden by a nearer observed surface: nothing counts.
+    px = visible_pixels(b, T_world_camera(), np.full_like(depth, 1.0), INTR, 4, 0.2, (0.3, 6.0))
+    assert px[0] == 0
+    assert in_view(b, invert_pose(T_world_camera()), INTR, 6.0)[0]
+    assert not in_view(b, invert_pose(T_world_camera(cam_x=5.0)), INTR, 6.0)[0]  # behind the camera
+
+
+def test_object_removed_after_the_expected_number_of_non_detections():
+    mapper = make_mapper()
+    row = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
+    depth, _ = render([], wall_x=4.0)  # the chair is gone: the camera sees the wall behind it
+    # By hand (eqs. 3-4, v_Other 0.5, r = 2, D = 2 + k): after k non-detections the chair score is
+    # (1.6 + 0.25 k) / (2 + k) and other (0.2 + 0.5 k) / (2 + k); other leads first at k = 6.
+    for k in range(1, 6):
+        empty_frame(mapper, depth, k)
+        assert mapper.map.objects.status[row] == ACTIVE, k
+    s = mapper.map.objects.scores[row]
+    np.testing.assert_allclose(s, np.array([1.6 + 1.25, 0.2 + 1.25, 0.2 + 2.5]) / 7)
+    res = empty_frame(mapper, depth, 6)
+    assert res.removed == 1 and mapper.map.objects.status[row] == REMOVED
+    kinds = [e.kind for e in mapper.map.events]
+    assert kinds.count("non-detection") == 6 and kinds[-1] == "removed"
+
+
+def test_object_kept_when_occluded_by_observed_depth():
+    mapper = make_mapper()
+    row = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
+    depth = np.full((INTR.height, INTR.width), 1.0, np.float32)  # someone stands in front
+    for k in range(10):
+        empty_frame(mapper, depth, k)
+    assert mapper.map.objects.status[row] == ACTIVE
+    assert mapper.map.objects.n_nondet[row] == 0
+
+
+def test_object_kept_when_hidden_by_another_map_object():
+    mapper = make_mapper()
+    front = add_object(mapper, [1.7, 0, 0.6], [0.4, 1.0, 1.2], [0.1, 0.8, 0.1], n_det=5)
+    back = add_object(mapper, [2.6, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
+    depth, masks = render([(1.5, 1.9, -0.5, 0.5, 0.0, 1.2)], wall_x=4.0)
+    vec = np.array([0.05, 0.9, 0.05])
+    for k in range(10):
+        res = mapper.process_frame(k, f"f{k}", [masks[0]], [vec], depth, T_world_camera(), INTR, (0.3, 6.0))
+        assert res.matched == 1 and res.created == 0
+    assert mapper.map.objects.status[back] == ACTIVE
+    assert mapper.map.objects.n_nondet[back] == 0
+    assert mapper.map.objects.status[front] == ACTIVE
+
+
+def test_static_policy_never_removes():
+    mapper = make_mapper(policy="static")
+    row = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
+    depth, _ = render([], wall_x=4.0)
+    for k in range(20):
+        empty_frame(mapper, depth, k)
+    assert mapper.map.objects.status[row] == ACTIVE
+
+
+def test_partial_views_of_one_object_end_as_one():
+    """A table cut by the image border in two views (its two ends), then seen whole: one object
+    of the table's size (the partial boxes do not match each other, the whole view matches one and
+    the merge after the frame absorbs the other)."""
+    mapper = make_mapper()
+    table = (3.0, 3.8, -1.0, 1.0, 0.0, 0.75)  # at 3 m the view is 3.8 m wide, the table 2 m
+    vec = np.array([0.05, 0.9, 0.05])
+    for i, cam_y in enumerate([1.5, -1.5, 0.0]):
+        depth, masks = render([table], wall_x=4.0, cam_y=cam_y)
+        res = mapper.process_frame(i, str(i), [masks[0]], [vec], depth, T_world_camera(cam_y=cam_y), INTR, (0.3, 6.0))
+        if i < 2:
+            assert res.created == 1  # the two ends are too far apart to match
+    active = mapper.map.active_rows()
+    assert len(active) == 1
+    t = mapper.map.objects
+    assert t.defined[active[0]]
+    assert np.sort(t.size[active[0]])[-1] == pytest.approx(2.0, abs=0.05)
+    assert [e.kind for e in mapper.map.events].count("merged") == 1

@@ -1,0 +1,128 @@
+import numpy as np
+import pytest
+
+from ltc_cli.config import defaults
+from ltc_cli.geometry import align_yaw, box_corners, invert_pose
+from ltc_cli.modeling import (
+    dbscan_labels, defined_flags, largest_clusters, model_detections, thin_mask, vertex_visibility,
+)
+from tests.scene import INTR, T_world_camera, face_rect, render
+
+
+def chair_points(rng):
+    """A chair-like point set: a seat, four legs and a back, 0.5 x 0.5 x 0.9 m, axis-aligned at
+    the origin; points 1 cm apart on average."""
+    parts = [
+        rng.uniform([-0.25, -0.25, 0.43], [0.25, 0.25, 0.47], (400, 3)),  # seat
+        rng.uniform([0.21, -0.25, 0.47], [0.25, 0.25, 0.9], (300, 3)),  # back
+    ]
+    for x, y in [(-0.23, -0.23), (-0.23, 0.23), (0.23, -0.23), (0.23, 0.23)]:
+        parts.append(rng.uniform([x - 0.02, y - 0.02, 0.0], [x + 0.02, y + 0.02, 0.43], (60, 3)))
+    return np.vstack(parts)
+
+
+def test_thinning_drops_a_boundary_band_bounded_by_max_iterations():
+    mask = np.zeros((100, 200), bool)
+    mask[20:80, 50:150] = True  # 60 x 100 px
+    thin = thin_mask(mask, max_iterations=5, fraction=0.05)  # k = min(5, 0.05 * 60) = 3
+    assert thin.sum() == (60 - 6) * (100 - 6)
+    assert thin[23, 53] and not thin[22, 53]
+    thin = thin_mask(mask, max_iterations=2, fraction=0.5)  # k = 2
+    assert thin.sum() == 56 * 96
+    small = np.zeros((50, 50), bool)
+    small[10:15, 10:15] = True  # too small to thin: 0.05 * 5 < 1
+    assert (thin_mask(small, 5, 0.05) == small).all()
+
+
+@pytest.mark.parametrize("method", ["voxel", "dbscan"])
+def test_largest_cluster_drops_bleed_and_noise(method):
+    rng = np.random.default_rng(0)
+    chair = chair_points(rng)
+    bleed = rng.uniform([0.9, -0.4, 0.2], [0.95, 0.4, 1.0], (250, 3))  # a patch of wall behind it
+    noise = rng.uniform([-2, -2, 0], [2, 2, 2], (15, 3))  # flying pixels
+    noise = noise[np.min(np.linalg.norm(noise[:, None] - chair[None], axis=-1), axis=1) > 0.3]
+    pts = np.vstack([chair, bleed, noise])
+    clusters = largest_clusters(pts, np.zeros(len(pts), int), eps=0.15, min_samples=20, method=method)
+    kept = clusters[0]
+    assert set(kept.tolist()) == set(range(len(chair)))
+
+
+def test_voxel_components_match_dbscan_on_the_chair():
+    rng = np.random.default_rng(3)
+    chair = chair_points(rng)
+    other = chair + [2.0, 0, 0]
+    pts = np.vstack([chair, other])
+    group = np.r_[np.zeros(len(chair), int), np.ones(len(other), int)]
+    vox = largest_clusters(pts, group, 0.15, 20, "voxel")
+    exact = largest_clusters(pts, group, 0.15, 20, "dbscan")
+    for a, b in zip(vox, exact):
+        assert set(a.tolist()) == set(b.tolist())
+
+
+def test_dbscan_labels_by_hand():
+    pts = np.array([[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [5, 5, 5], [0.3, 0, 0]], dtype=float)
+    labels = dbscan_labels(pts, eps=0.15, min_samples=3)
+    # 0.1 and 0.2 have 3 points within eps (themselves included): core; 0 and 0.3 are border points.
+    assert labels[3] == -1
+    assert len(set(labels[[0, 1, 2, 4]])) == 1 and labels[0] >= 0
+
+
+def test_visibility_of_a_box_half_out_of_the_image():
+    T_wc = T_world_camera()
+    depth = np.full((INTR.height, INTR.width), 6.0, np.float32)
+    # Box 2 m ahead, spanning y in [-0.5, 2.5]: its left side (large +y) is outside the image
+    # (at 2 m the half-width of the view is 2 * 319.5 / 500 = 1.28 m).
+    corners = box_corners([2.0, 1.0, 0.8], 0.0, [0.4, 3.0, 0.6])
+    vis = vertex_visibility(corners[None], invert_pose(T_wc), depth, INTR, border=10, occlusion_tolerance=0.2)[0]
+    y = corners[:, 1]
+    np.testing.assert_array_equal(vis, y < 0)
+    assert not defined_flags(vis[None])[0]  # the y extent was not observed
+
+
+def test_visibility_behind_a_nearer_surface():
+    T_wc = T_world_camera()
+    corners = box_corners([3.0, 0.0, 0.8], 0.0, [0.4, 0.6, 0.6])
+    depth = np.full((INTR.height, INTR.width), 6.0, np.float32)
+    vis = vertex_visibility(corners[None], invert_pose(T_wc), depth, INTR, 10, 0.2)[0]
+    assert vis.all() and defined_flags(vis[None])[0]
+    # A wall at 2 m covering the right half of the image hides the vertices with y < 0.
+    depth[:, 320:] = 2.0
+    vis = vertex_visibility(corners[None], invert_pose(T_wc), depth, INTR, 10, 0.2)[0]
+    np.testing.assert_array_equal(vis, corners[:, 1] > 0)
+    # A surface only 0.1 m nearer than the vertices is within the tolerance: still visible.
+    depth[:, :] = 2.7
+    vis = vertex_visibility(corners[None], invert_pose(T_wc), depth, INTR, 10, 0.2)[0]
+    np.testing.assert_array_equal(vis, corners[:, 0] < 2.9)
+
+
+def test_defined_needs_each_axis():
+    vis = np.zeros(8, bool)
+    vis[[0, 1]] = True  # an x edge
+    assert not defined_flags(vis)
+    vis[[2]] = True  # + a y edge (1-2)
+    assert not defined_flags(vis)
+    vis[[5]] = True  # + a z edge (1-5)
+    assert defined_flags(vis)
+
+
+def test_model_detections_on_an_analytic_scene():
+    p = defaults()["modeling"]
+    # A cabinet 0.6 (y) x 0.8 (z) whose front face is 2 m ahead; the wall is 4 m ahead.
+    box = (2.0, 2.4, -0.3, 0.3, 0.2, 1.0)
+    depth, masks = render([box], wall_x=4.0)
+    # The detector's mask bleeds 6 px onto the wall on every side.
+    u0, u1, v0, v1 = face_rect(-0.3, 0.3, 0.2, 1.0, 2.0)
+    mask = np.zeros_like(masks[0])
+    mask[v0 - 6 : v1 + 6, u0 - 6 : u1 + 6] = True
+    out = model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0))
+    assert len(out.source) == 1
+    c, s = out.boxes.center[0], out.boxes.size[0]
+    # Only the front face is seen: its thickness is padded to min_extent about the face.
+    _, size = align_yaw(0.0, out.boxes.yaw[0], s)
+    assert c[0] == pytest.approx(2.0, abs=1e-4)
+    assert size[0] == pytest.approx(p["min_extent"])
+    # The face: 0.6 wide, 0.8 high; thinning and subsampling lose at most a few cm.
+    assert size[1] == pytest.approx(0.6, abs=0.05)
+    assert size[2] == pytest.approx(0.8, abs=0.05)
+    assert c[2] == pytest.approx(0.6, abs=0.03)
+    assert abs(c[1]) < 0.03
