@@ -21,7 +21,7 @@ from . import __version__, plugins
 from .errors import ConfigError, FrameError, LtcError, RecordingError
 from .geometry import rotation_between
 from .mapping import ClassMapper, Mapper, SemanticMap
-from .schemas import validate
+from .validation import validate
 from .store import MapLock, load_map, save_map
 from .types import Recording
 
@@ -260,7 +260,10 @@ def _run(smap, map_path, config, recordings, detectors, ups, metric, policy, cal
         error = exc
     row["status"] = "interrupted" if (summary.interrupted or error is not None) else "complete"
     row["finished"] = now_iso()
-    save_map(smap, map_path)
+    # A run that mapped no frame leaves the file as it was (and creates none): bad input never
+    # changes a map.
+    if summary.frames_done > 0:
+        save_map(smap, map_path)
     summary.objects = len(smap.active_rows())
     summary.stage_seconds = stage
     if error is not None:

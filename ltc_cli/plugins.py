@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib
+import os
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -30,6 +32,13 @@ def get_plugin_manager() -> pluggy.PluginManager:
         pm = pluggy.PluginManager("ltc")
         pm.add_hookspecs(hookspecs)
         pm.load_setuptools_entrypoints("ltc")
+        # Extra plugin modules by import name, for trying a plugin without packaging it.
+        for name in filter(None, (m.strip() for m in os.environ.get("LTC_PLUGINS", "").split(","))):
+            if pm.get_plugin(name) is None:
+                try:
+                    pm.register(importlib.import_module(name), name=name)
+                except ImportError as exc:
+                    raise PluginError(f"cannot import plugin module {name!r} named in LTC_PLUGINS ({exc})") from None
         # A plugin that implements a hook we do not specify is a typo or a version skew: say so now.
         pm.check_pending()
         _pm = pm

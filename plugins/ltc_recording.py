@@ -12,7 +12,7 @@ from ltc_cli import hookimpl
 from ltc_cli.errors import FrameError, RecordingError
 from ltc_cli.geometry import is_rotation, pose_matrix
 from ltc_cli.images import load_depth, load_rgb
-from ltc_cli.schemas import validate
+from ltc_cli.validation import validate
 from ltc_cli.types import Frame, FrameRef, Intrinsics, Recording
 
 AXES = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}
@@ -156,7 +156,13 @@ class LtcRecordingReader:
             return load
 
         frames = [FrameRef(key, i, make_loader(i, key)) for i, key in enumerate(order)]
-        identity = hashlib.sha256(meta_bytes + b"\0" + poses_text.encode()).hexdigest()[:16]
+        # Metadata, poses and the depth files' names and sizes: two laps driven along the same path
+        # differ in their (compressed) depth images even when their poses are the same.
+        listing = ""
+        if depth_dir.is_dir():
+            listing = "\n".join(f"{p.name} {p.stat().st_size}" for p in sorted(depth_dir.iterdir()))
+        digest = hashlib.sha256(meta_bytes + b"\0" + poses_text.encode() + b"\0" + listing.encode())
+        identity = digest.hexdigest()[:16]
         return Recording(
             path=str(root), format="ltc-recording/1", identity=identity, intrinsics=intr, frames=frames,
             up=up, classes=meta.get("classes"), depth_range=depth_range, meta=meta,

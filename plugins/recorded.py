@@ -14,7 +14,7 @@ from PIL import Image
 
 from ltc_cli import hookimpl, rle
 from ltc_cli.errors import FrameError, PluginError
-from ltc_cli.schemas import validate
+from ltc_cli.validation import validate
 from ltc_cli.types import Detection, Frame
 
 

@@ -1,0 +1,256 @@
+"""End-to-end ingest: sessions, resume after SIGKILL, a second writer, and bad input."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from ltc_cli.cli import cli
+from ltc_cli.mapping import ACTIVE
+from ltc_cli.store import MapLock, load_map
+from tests.recording import CLASSES, OBJECTS, write_recording
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+
+
+def active_objects(path):
+    smap = load_map(path)
+    t = smap.objects
+    rows = np.flatnonzero(t.status == ACTIVE)
+    return [(smap.classes[int(t.scores[r, :-1].argmax())], t.center[r], t.size[r]) for r in rows]
+
+
+def snapshot(path):
+    smap = load_map(path)
+    return {k: v.copy() for k, v in smap.objects.columns().items()}, [e.kind for e in smap.events]
+
+
+@pytest.fixture(scope="module")
+def lap1(tmp_path_factory):
+    return write_recording(tmp_path_factory.mktemp("lap1"))
+
+
+def test_ingest_builds_one_object_per_real_object(lap1, tmp_path):
+    m = tmp_path / "map.h5"
+    r = run("ingest", lap1, "--map", m)
+    assert r.exit_code == 0, r.output
+    assert "5 frames ingested" in r.output
+    objs = active_objects(m)
+    assert sorted(c for c, _, _ in objs) == ["chair", "table", "tv"]
+    for cls, center, size in objs:
+        (x0, x1, y0, y1, z0, z1), k = next(o for o in OBJECTS if CLASSES[o[1]] == cls)
+        # Seen from the front only: the y and z extents are observed, x is a face.
+        assert center[1] == pytest.approx((y0 + y1) / 2, abs=0.05), cls
+        assert center[2] == pytest.approx((z0 + z1) / 2, abs=0.05), cls
+        assert np.sort(size)[-1] == pytest.approx(max(y1 - y0, z1 - z0), abs=0.08), cls
+    # Ingesting the same recording again is a no-op: the file is not even rewritten.
+    before = m.read_bytes()
+    r = run("ingest", lap1, "--map", m)
+    assert r.exit_code == 0 and "0 frames ingested" in r.output and "5 already in the map" in r.output
+    assert m.read_bytes() == before
+
+
+SWEEP = tuple(np.r_[np.linspace(1.5, -1.5, 9), np.linspace(-1.5, 1.5, 9)[1:]])
+
+
+def test_two_laps_two_sessions_removes_the_absent_object(tmp_path):
+    """The robot sweeps past the scene and back in each lap; the chair is gone in lap 2."""
+    lap1 = write_recording(tmp_path / "lap1", cam_ys=SWEEP)
+    lap2 = write_recording(tmp_path / "lap2", objects=[o for o in OBJECTS if CLASSES[o[1]] != "chair"], cam_ys=SWEEP)
+    m = tmp_path / "map.h5"
+    assert run("ingest", lap1, "--map", m).exit_code == 0
+    r = run("ingest", lap2, "--map", m)
+    assert r.exit_code == 0, r.output
+    assert sorted(c for c, _, _ in active_objects(m)) == ["table", "tv"]
+    smap = load_map(m)
+    assert len(smap.sessions) == 2
+    removed = [e for e in smap.events if e.kind == "removed"]
+    assert len(removed) == 1 and removed[0].session == 1
+    # With the static-world policy the chair stays (a ghost).
+    m2 = tmp_path / "static.h5"
+    run("ingest", lap1, "--map", m2, "--policy", "static")
+    run("ingest", lap2, "--map", m2, "--policy", "static")
+    assert sorted(c for c, _, _ in active_objects(m2)) == ["chair", "table", "tv"]
+    r = run("info", m)
+    assert r.exit_code == 0 and "2 sessions" in r.output.splitlines()[-1]
+
+
+def ltc_process(*args, env_extra=None):
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
+    env.update(env_extra or {})
+    return subprocess.Popen([sys.executable, "-m", "ltc_cli.cli", *map(str, args)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def frames_in(path):
+    try:
+        return len(load_map(path).frame_keys)
+    except Exception:
+        return 0
+
+
+@pytest.mark.slow
+def test_sigkill_part_way_then_resume_gives_the_same_map(tmp_path):
+    rec = write_recording(tmp_path / "rec", cam_ys=tuple(np.linspace(1.5, -1.5, 16)))
+    ref = tmp_path / "ref.h5"
+    assert run("ingest", rec, "--map", ref).exit_code == 0
+    m = tmp_path / "map.h5"
+    env = {"LTC_PLUGINS": "tests.slow_detector", "LTC_TEST_DELAY": "0.15"}
+    p = ltc_process("ingest", rec, "--map", m, "--detector", "slow-recorded", "--checkpoint-every", "2", env_extra=env)
+    deadline = time.time() + 60
+    while frames_in(m) < 4 and time.time() < deadline and p.poll() is None:
+        time.sleep(0.02)
+    assert p.poll() is None, "the ingest ended before it could be killed"
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    done = frames_in(m)
+    assert 4 <= done < 16  # the map opens, with the frames of the last checkpoint
+    assert not list(tmp_path.glob(".map.h5.tmp*")) or True  # a killed writer may leave its temp file
+    p = ltc_process("ingest", rec, "--map", m, "--detector", "slow-recorded", env_extra={**env, "LTC_TEST_DELAY": "0"})
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 0, err
+    assert f"{16 - done} frames ingested" in out and f"{done} already in the map" in out
+    a, ev_a = snapshot(ref)
+    b, ev_b = snapshot(m)
+    assert ev_a == ev_b
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    assert len(load_map(m).sessions) == 1  # the interrupted session was resumed, not duplicated
+
+
+@pytest.mark.slow
+def test_sigterm_commits_and_exits(tmp_path):
+    rec = write_recording(tmp_path / "rec", cam_ys=tuple(np.linspace(1.5, -1.5, 12)))
+    m = tmp_path / "map.h5"
+    env = {"LTC_PLUGINS": "tests.slow_detector", "LTC_TEST_DELAY": "0.2"}
+    p = ltc_process("ingest", rec, "--map", m, "--detector", "slow-recorded", "--checkpoint-every", "0", env_extra=env)
+    time.sleep(2.0)
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 143, err
+    assert "interrupted" in out
+    assert 0 < frames_in(m) < 12  # committed on the signal although no checkpoint was due
+
+
+def test_second_concurrent_writer_gets_a_clear_error(lap1, tmp_path):
+    m = tmp_path / "map.h5"
+    with MapLock(m):
+        r = CliRunner().invoke(cli, ["ingest", str(lap1), "--map", str(m)])
+    assert r.exit_code == 1
+    assert "another ltc process" in r.output and str(m) in r.output
+    assert not m.exists()
+
+
+# -- bad input -------------------------------------------------------------------------------
+
+def _png16(path, shape, value=2000):
+    from PIL import Image
+
+    Image.fromarray(np.full(shape, value, np.uint16)).save(path)
+
+
+def corrupt_missing_rgb(rec):
+    os.remove(rec / "rgb" / "000000.png")
+    return rec / "rgb" / "000000.png"
+
+
+def corrupt_unreadable_rgb(rec):
+    (rec / "rgb" / "000000.png").write_bytes(b"\x89PNG but not really")
+    return rec / "rgb" / "000000.png"
+
+
+def corrupt_depth_size(rec):
+    _png16(rec / "depth" / "000000.png", (240, 320))
+    return rec / "depth" / "000000.png"
+
+
+def corrupt_depth_type(rec):
+    from PIL import Image
+
+    Image.fromarray(np.full((480, 640), 20, np.uint8)).save(rec / "depth" / "000000.png")
+    return rec / "depth" / "000000.png"
+
+
+def _pose_line(rec, new):
+    p = rec / "poses.txt"
+    p.write_text(new + "\n")
+    return p
+
+
+def corrupt_missing_pose(rec):
+    return _pose_line(rec, "# no poses for 000000")
+
+
+def corrupt_nonfinite_pose(rec):
+    return _pose_line(rec, "000000 0 nan 1 0 0 0 1")
+
+
+def corrupt_not_rotation(rec):
+    return _pose_line(rec, "000000 0 0 1 0.5 0.5 0.5 1.5")
+
+
+BAD_FRAMES = [corrupt_missing_rgb, corrupt_unreadable_rgb, corrupt_depth_size, corrupt_depth_type,
+              corrupt_missing_pose, corrupt_nonfinite_pose, corrupt_not_rotation]
+
+
+@pytest.mark.parametrize("corrupt", BAD_FRAMES, ids=lambda f: f.__name__[8:])
+def test_bad_frame_gives_one_clear_line_and_never_changes_the_map(lap1, tmp_path, corrupt):
+    m = tmp_path / "map.h5"
+    assert run("ingest", lap1, "--map", m).exit_code == 0
+    before = m.read_bytes()
+    bad = write_recording(tmp_path / "bad", cam_ys=(0.0,))
+    culprit = corrupt(bad)
+    for strict in (False, True):
+        args = ["ingest", str(bad), "--map", str(m)] + (["--strict"] if strict else [])
+        r = CliRunner().invoke(cli, args)
+        lines = [ln for ln in r.stderr.splitlines() if ln.strip()] if hasattr(r, "stderr") else []
+        if strict:
+            assert r.exit_code == 1
+            assert len(lines) == 1 and str(culprit) in lines[0] and "Traceback" not in r.output
+        else:
+            assert r.exit_code == 0
+            assert len(lines) == 1 and lines[0].startswith("warning: skipped frame 000000") and str(culprit) in lines[0]
+            assert "1 skipped" in r.stdout
+        assert m.read_bytes() == before
+
+
+@pytest.mark.parametrize("text", ["format: ltc-recording/1\ncamera: [1, 2\n", "format: ltc-recording/1\ncamera: {width: 640}\ndepth: {scale: 1000}\n", "just a string\n"])
+def test_malformed_recording_yaml(lap1, tmp_path, text):
+    m = tmp_path / "map.h5"
+    assert run("ingest", lap1, "--map", m).exit_code == 0
+    before = m.read_bytes()
+    bad = write_recording(tmp_path / "bad", cam_ys=(0.0,))
+    (bad / "recording.yaml").write_text(text)
+    r = CliRunner().invoke(cli, ["ingest", str(bad), "--map", str(m)])
+    assert r.exit_code == 1
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and str(bad / "recording.yaml") in lines[0], r.stderr
+    assert m.read_bytes() == before
+
+
+def test_refuses_a_file_that_is_not_a_map(lap1, tmp_path):
+    m = tmp_path / "notes.h5"
+    m.write_text("my notes")
+    r = CliRunner().invoke(cli, ["ingest", str(lap1), "--map", str(m)])
+    assert r.exit_code == 1 and "not an ltc map" in r.stderr
+    assert m.read_text() == "my notes"
+
+
+def test_unknown_setting_and_plugin_are_one_line_errors(lap1, tmp_path):
+    r = CliRunner().invoke(cli, ["ingest", str(lap1), "--map", str(tmp_path / "m.h5"), "--set", "modeling.epsilon=3"])
+    assert r.exit_code == 1 and "unknown setting 'modeling.epsilon'" in r.stderr
+    r = CliRunner().invoke(cli, ["ingest", str(lap1), "--map", str(tmp_path / "m.h5"), "--metric", "nope"])
+    assert r.exit_code == 1 and "unknown metric 'nope'" in r.stderr
