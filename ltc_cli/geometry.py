@@ -130,6 +130,8 @@ def min_area_rect(xy: np.ndarray):
     edges = np.roll(hull, -1, axis=0) - hull
     angles = np.arctan2(edges[:, 1], edges[:, 0])
     angles = angles[np.hypot(edges[:, 0], edges[:, 1]) > 1e-12]
+    if angles.size == 0:  # every point at one place
+        return hull[0].copy(), 0.0, (0.0, 0.0)
     c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
     u = hull[None, :, 0] * c + hull[None, :, 1] * s  # coordinates along each candidate axis
     v = -hull[None, :, 0] * s + hull[None, :, 1] * c

@@ -33,47 +33,60 @@ def thin_iterations(mask_h: int, mask_w: int, max_iterations: int, fraction: flo
     return int(min(max_iterations, fraction * min(mask_h, mask_w)))
 
 
-def thin_mask(mask: np.ndarray, max_iterations: int, fraction: float) -> np.ndarray:
+def thin_crop(mask: np.ndarray, max_iterations: int, fraction: float):
     """Thin a (H, W) bool mask by k iterations of 3x3 erosion, k = min(max, fraction * short side).
 
     The number of iterations follows the mask's own size so that a small, far object keeps most of
     its pixels while a large one loses the boundary band where masks bleed onto neighbours.
     k iterations of a 3x3 erosion equal one (2k+1)x(2k+1) minimum filter, which is separable, so
     the work is done on the mask's bounding box only. The image border does not erode.
+
+    Returns (crop (h, w) bool, row0, col0, k): the thinned mask within its bounding box (plus the
+    margin) and where that box starts in the image; crop is None for an empty mask.
     """
     rows = np.flatnonzero(mask.any(axis=1))
     if rows.size == 0:
-        return mask
-    cols = np.flatnonzero(mask.any(axis=0))
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+        return None, 0, 0, 0
+    r0, r1 = rows[0], rows[-1] + 1
+    cols = np.flatnonzero(mask[r0:r1].any(axis=0))
+    c0, c1 = cols[0], cols[-1] + 1
     k = thin_iterations(r1 - r0, c1 - c0, max_iterations, fraction)
-    if k <= 0:
-        return mask
     h, w = mask.shape
     # A margin of k zeros around the mask, except where the image ends: a mask cut by the image
     # border did not bleed there, and eroding it would move a cut edge inwards, where its vertices
     # would pass the border test and a partial view would look complete.
     R0, R1, C0, C1 = max(r0 - k, 0), min(r1 + k, h), max(c0 - k, 0), min(c1 + k, w)
-    crop = mask[R0:R1, C0:C1].view(np.uint8)
-    thinned = ndimage.minimum_filter(crop, size=2 * k + 1, mode="nearest")
+    crop = mask[R0:R1, C0:C1]
+    if k > 0:
+        crop = ndimage.minimum_filter(crop.view(np.uint8), size=2 * k + 1, mode="nearest").view(bool)
+    return crop, R0, C0, k
+
+
+def thin_mask(mask: np.ndarray, max_iterations: int, fraction: float) -> np.ndarray:
+    """The thinned mask at full size (see :func:`thin_crop`)."""
+    crop, r0, c0, _ = thin_crop(mask, max_iterations, fraction)
     out = np.zeros_like(mask)
-    out[R0:R1, C0:C1] = thinned.astype(bool)
+    if crop is not None:
+        out[r0 : r0 + crop.shape[0], c0 : c0 + crop.shape[1]] = crop
     return out
 
 
-def mask_pixels(mask: np.ndarray, depth_m: np.ndarray, max_points: int, min_depth: float, max_depth: float):
-    """A regular subsample of the mask's pixels with depth in range.
+def mask_pixels(crop: np.ndarray, r0: int, c0: int, depth_m: np.ndarray, max_points: int,
+                min_depth: float, max_depth: float):
+    """A regular subsample of a mask's pixels with depth in range.
 
-    Returns (u (N,), v (N,), z (N,), stride): one pixel in stride x stride is kept so that at most
-    about max_points remain.
+    crop (h, w) bool is the mask's part starting at image row r0, column c0. Keeps the pixels whose
+    image coordinates are multiples of the stride, so that at most about max_points remain.
+    Returns (u (N,), v (N,), z (N,), stride).
     """
-    v, u = np.nonzero(mask)
-    if u.size == 0:
-        return u, v, np.zeros(0, dtype=np.float32), 1
-    stride = max(1, int(np.ceil(np.sqrt(u.size / max_points))))
-    if stride > 1:
-        keep = ((u % stride) == 0) & ((v % stride) == 0)
-        u, v = u[keep], v[keep]
+    n = int(np.count_nonzero(crop))
+    if n == 0:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0, dtype=np.float32), 1
+    stride = max(1, int(np.ceil(np.sqrt(n / max_points))))
+    sr, sc = (-r0) % stride, (-c0) % stride
+    vv, uu = np.nonzero(crop[sr::stride, sc::stride])
+    v = r0 + sr + vv * stride
+    u = c0 + sc + uu * stride
     z = depth_m[v, u]
     ok = (z > min_depth) & (z < max_depth)
     return u[ok], v[ok], z[ok], stride
@@ -286,13 +299,10 @@ def model_detections(
     min_d, max_d = depth_range
     pts_list, groups, sources, pads = [], [], [], []
     for i, mask in enumerate(masks):
-        rows = np.flatnonzero(mask.any(axis=1))
-        if rows.size == 0:
+        crop, r0, c0, k = thin_crop(mask, p["thin_max_iterations"], p["thin_fraction"])
+        if crop is None:
             continue
-        cols = np.flatnonzero(mask.any(axis=0))
-        k = thin_iterations(rows[-1] + 1 - rows[0], cols[-1] + 1 - cols[0], p["thin_max_iterations"], p["thin_fraction"])
-        thinned = thin_mask(mask, p["thin_max_iterations"], p["thin_fraction"])
-        u, v, z, stride = mask_pixels(thinned, depth_m, p["max_points"], min_d, max_d)
+        u, v, z, stride = mask_pixels(crop, r0, c0, depth_m, p["max_points"], min_d, max_d)
         if len(z) < p["min_samples"]:
             continue
         # Pixels lost at each side: the thinning band, and on average half a subsampling step.

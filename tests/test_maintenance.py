@@ -45,7 +45,9 @@ def test_visible_pixels_counts_the_projected_face():
 
 
 def test_object_removed_after_the_expected_number_of_non_detections():
-    mapper = make_mapper()
+    cfg = defaults()
+    cfg["integration"]["max_weight"] = None  # the paper's running mean
+    mapper = make_mapper(cfg)
     row = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
     depth, _ = render([], wall_x=4.0)  # the chair is gone: the camera sees the wall behind it
     # By hand (eqs. 3-4, v_Other 0.5, r = 2, D = 2 + k): after k non-detections the chair score is
@@ -59,6 +61,24 @@ def test_object_removed_after_the_expected_number_of_non_detections():
     assert res.removed == 1 and mapper.map.objects.status[row] == REMOVED
     kinds = [e.kind for e in mapper.map.events]
     assert kinds.count("non-detection") == 6 and kinds[-1] == "removed"
+
+
+def test_capped_weight_removes_a_long_seen_object_sooner():
+    """With D capped at 3, an object seen 40 times: each non-detection moves the vector a quarter of
+    the way to eq. 4's [0.25, 0.25, 0.5]. By hand: chair 0.8 -> 0.6625 -> 0.559 -> 0.482 -> 0.424
+    and other 0.1 -> 0.2 -> 0.275 -> 0.331 -> 0.373 -> 0.405; other leads at the 5th
+    (0.405 > 0.380)."""
+    cfg = defaults()
+    cfg["integration"]["max_weight"] = 3
+    mapper = make_mapper(cfg)
+    row = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=40)
+    depth, _ = render([], wall_x=4.0)
+    for k in range(1, 5):
+        empty_frame(mapper, depth, k)
+        assert mapper.map.objects.status[row] == ACTIVE, k
+    assert mapper.map.objects.scores[row][0] == pytest.approx(0.8 * 0.75**4 + 0.25 * (1 - 0.75**4))
+    empty_frame(mapper, depth, 5)
+    assert mapper.map.objects.status[row] == REMOVED
 
 
 def test_object_kept_when_occluded_by_observed_depth():

@@ -1,0 +1,112 @@
+"""Per-frame cost of the four stages at 640x480 (detection and image decoding excluded).
+
+A camera sweeps past ten objects (about ten detections per frame). The map holds those objects plus
+others out of view: 200 objects in all, then 100,000, to show that objects out of view do not cost
+time. Prints the median milliseconds per frame of each stage and of the whole pipeline.
+
+    python benchmarks/bench_pipeline.py [--frames N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import numpy as np  # noqa: E402
+
+from ltc_cli import plugins  # noqa: E402
+from ltc_cli.config import defaults  # noqa: E402
+from ltc_cli.mapping import ACTIVE, Mapper, SemanticMap  # noqa: E402
+from tests.scene import INTR, T_world_camera, render  # noqa: E402
+
+CLASSES = [f"class{i}" for i in range(20)]
+
+
+def scene_objects():
+    """Ten boxes 2.5-4 m ahead across the view: (x0, x1, y0, y1, z0, z1)."""
+    rng = np.random.default_rng(0)
+    objs = []
+    for i, y in enumerate(np.linspace(-2.2, 2.2, 10)):
+        x0 = 2.5 + 1.5 * rng.random()
+        w, d, h = 0.3 + 0.3 * rng.random(), 0.3 + 0.3 * rng.random(), 0.4 + 0.8 * rng.random()
+        objs.append((x0, x0 + d, y - w / 2, y + w / 2, 0.0, h))
+    return objs
+
+
+def class_vector(k):
+    v = np.full(len(CLASSES) + 1, 0.1 / len(CLASSES))
+    v[k % len(CLASSES)] = 0.9
+    return v / v.sum()
+
+
+def fill_far_objects(mapper, n, seed=1):
+    """n objects outside the camera's reach, spread over a big area (other rooms, other floors)."""
+    rng = np.random.default_rng(seed)
+    side = max(60.0, np.sqrt(n) * 3.0)
+    t = mapper.map.objects
+    done = 0
+    while done < n:
+        c = np.array([rng.uniform(-side, side), rng.uniform(-side, side), 0.5])
+        if abs(c[0]) < 15 and abs(c[1]) < 15:
+            continue  # keep the camera's neighbourhood for the real objects
+        size = rng.uniform(0.3, 1.5, 3)
+        row = t.append(center=c, yaw=rng.uniform(-1.5, 1.5), size=size, visible=np.ones(8, bool), defined=True,
+                       scores=class_vector(done), n_det=5, status=ACTIVE)
+        mapper.index.insert(row, c, size)
+        done += 1
+
+
+def run(n_far: int, frames: int, cfg: dict):
+    smap = SemanticMap.new(CLASSES)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]))
+    objs = scene_objects()
+    cam_ys = 0.3 * np.sin(np.linspace(0, 4 * np.pi, frames))
+    rendered = [render(objs, wall_x=6.5, cam_y=y) for y in cam_ys]
+    # Warm-up: the objects in view enter the map.
+    for i in range(3):
+        depth, masks = rendered[i]
+        mapper.process_frame(i, str(i), masks, [class_vector(k) for k in range(len(masks))], depth,
+                             T_world_camera(cam_y=cam_ys[i]), INTR, (0.3, 6.0))
+    fill_far_objects(mapper, n_far)
+    per_stage = {k: [] for k in ("modeling", "association", "integration", "maintenance", "merge")}
+    totals, dets = [], []
+    for i, (depth, masks) in enumerate(rendered):
+        masks = [m for m in masks if m.any()]
+        vecs = [class_vector(k) for k in range(len(masks))]
+        t0 = time.perf_counter()
+        res = mapper.process_frame(100 + i, str(100 + i), masks, vecs, depth, T_world_camera(cam_y=cam_ys[i]),
+                                   INTR, (0.3, 6.0))
+        totals.append(time.perf_counter() - t0)
+        dets.append(len(masks))
+        for k, v in res.timings.items():
+            per_stage[k].append(v)
+    return {k: 1000 * statistics.median(v) for k, v in per_stage.items()}, 1000 * statistics.median(totals), \
+        statistics.mean(dets), len(smap.active_rows())
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--frames", type=int, default=60)
+    args = ap.parse_args()
+    cfg = defaults()
+    print(f"640x480, {args.frames} frames, one thread; median ms per frame (detection and decoding excluded)")
+    results = {}
+    for n_far in (190, 99_990):
+        stages, total, n_det, n_obj = run(n_far, args.frames, cfg)
+        results[n_far] = total
+        cols = "  ".join(f"{k} {v:6.2f}" for k, v in stages.items())
+        print(f"map {n_obj:>7} objects, {n_det:.1f} detections/frame: {cols}  | pipeline {total:6.2f} ms")
+    print(f"100k-object map / 200-object map: {results[99_990] / results[190]:.2f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,247 @@
+"""Tests of ltc_cli.evaluation against independent values (shapely polygons, hand computations)."""
+
+import time
+
+import numpy as np
+import pytest
+from shapely.geometry import Polygon
+
+from ltc_cli.errors import LtcError
+from ltc_cli.evaluation import (
+    convex_intersection_area,
+    evaluate,
+    pairwise_ious,
+    pairwise_ious_arrays,
+    volume_iou,
+    xy_iou,
+)
+from ltc_cli.geometry import box_corners
+
+
+def _shapely_ious(a, b):
+    """Reference XY IoU and VIoU from shapely footprints (an independent implementation)."""
+    pa = Polygon(box_corners(*a)[:4, :2])
+    pb = Polygon(box_corners(*b)[:4, :2])
+    inter = pa.intersection(pb).area
+    union = pa.area + pb.area - inter
+    za = (a[0][2] - a[2][2] / 2, a[0][2] + a[2][2] / 2)
+    zb = (b[0][2] - b[2][2] / 2, b[0][2] + b[2][2] / 2)
+    dz = max(0.0, min(za[1], zb[1]) - max(za[0], zb[0]))
+    vi = inter * dz
+    vu = pa.area * a[2][2] + pb.area * b[2][2] - vi
+    return (inter / union if union > 0 else 0.0), (vi / vu if vu > 0 else 0.0)
+
+
+def _random_box(rng, spread=1.0):
+    return (
+        rng.uniform(-spread, spread, 3),
+        float(rng.uniform(-np.pi / 2, np.pi / 2)),
+        rng.uniform(0.05, 1.5, 3),
+    )
+
+
+def test_hand_cases():
+    a = ((0.0, 0.0, 0.5), 0.0, (1.0, 1.0, 1.0))
+    assert xy_iou(a, a) == pytest.approx(1.0, abs=1e-12)
+    assert volume_iou(a, a) == pytest.approx(1.0, abs=1e-12)
+    # Disjoint, and touching along an edge: 0.
+    assert xy_iou(a, ((3.0, 0.0, 0.5), 0.3, (1.0, 1.0, 1.0))) == 0.0
+    assert xy_iou(a, ((1.0, 0.0, 0.5), 0.0, (1.0, 1.0, 1.0))) == pytest.approx(0.0, abs=1e-12)
+    # Half shifted: intersection 0.5, union 1.5.
+    assert xy_iou(a, ((0.5, 0.0, 0.5), 0.0, (1.0, 1.0, 1.0))) == pytest.approx(1 / 3)
+    # A unit square and its copy turned by 45 degrees: the intersection is a regular octagon of
+    # area 2 (sqrt2 - 1) (four corner triangles with legs 1 - sqrt2/2 cut off), the union
+    # 2 - 2 (sqrt2 - 1), so IoU = (sqrt2 - 1) / (2 - sqrt2) = 1 / sqrt2.
+    b = ((0.0, 0.0, 0.5), np.pi / 4, (1.0, 1.0, 1.0))
+    assert xy_iou(a, b) == pytest.approx(1 / np.sqrt(2), abs=1e-12)
+    assert volume_iou(a, b) == pytest.approx(1 / np.sqrt(2), abs=1e-12)
+    # Same footprints, z intervals [0, 1] and [0.5, 2.5]: overlap 0.5 -> 0.5 / (1 + 2 - 0.5).
+    c = ((0.0, 0.0, 1.5), 0.0, (1.0, 1.0, 2.0))
+    assert volume_iou(a, c) == pytest.approx(0.5 / 2.5)
+    assert xy_iou(a, c) == pytest.approx(1.0)
+    # The 45-degree copy, taller and lifted: octagon area x z overlap 0.5.
+    d = ((0.0, 0.0, 1.5), np.pi / 4, (1.0, 1.0, 2.0))
+    oct_area = 2 * (np.sqrt(2) - 1)
+    assert volume_iou(a, d) == pytest.approx(oct_area * 0.5 / (1 + 2 - oct_area * 0.5))
+    # Yaw and yaw + pi / 2 with swapped sizes are the same box.
+    e = ((0.2, 0.1, 0.0), 0.3, (2.0, 0.5, 1.0))
+    f = ((0.2, 0.1, 0.0), 0.3 - np.pi / 2, (0.5, 2.0, 1.0))
+    assert xy_iou(e, f) == pytest.approx(1.0, abs=1e-12)
+    # A zero-size box overlaps nothing.
+    assert xy_iou(a, ((0.0, 0.0, 0.5), 0.0, (0.0, 0.0, 0.0))) == 0.0
+    # Dict boxes work as well.
+    assert xy_iou({"center": a[0], "yaw": a[1], "size": a[2]}, b) == pytest.approx(1 / np.sqrt(2))
+
+
+def test_random_boxes_match_shapely():
+    rng = np.random.default_rng(1)
+    for _ in range(400):
+        a, b = _random_box(rng, 0.8), _random_box(rng, 0.8)
+        ref_xy, ref_v = _shapely_ious(a, b)
+        assert xy_iou(a, b) == pytest.approx(ref_xy, abs=1e-9)
+        assert volume_iou(a, b) == pytest.approx(ref_v, abs=1e-9)
+        assert xy_iou(b, a) == pytest.approx(ref_xy, abs=1e-9)
+
+
+def test_far_from_origin_is_precise():
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        a, b = _random_box(rng, 0.5), _random_box(rng, 0.5)
+        ref_xy, _ = _shapely_ious(a, b)
+        shift = np.array([1000.0, -2000.0, 0.0])
+        a2, b2 = (a[0] + shift, a[1], a[2]), (b[0] + shift, b[1], b[2])
+        assert xy_iou(a2, b2) == pytest.approx(ref_xy, abs=1e-7)
+
+
+def test_pairwise_matches_single_and_is_fast():
+    rng = np.random.default_rng(3)
+    boxes_a = [_random_box(rng, 3.0) for _ in range(40)]
+    boxes_b = [_random_box(rng, 3.0) for _ in range(30)]
+    xy, vol = pairwise_ious(boxes_a, boxes_b)
+    assert xy.shape == (40, 30) and vol.shape == (40, 30)
+    for i in range(0, 40, 7):
+        for j in range(30):
+            ref_xy, ref_v = _shapely_ious(boxes_a[i], boxes_b[j])
+            assert xy[i, j] == pytest.approx(ref_xy, abs=1e-9)
+            assert vol[i, j] == pytest.approx(ref_v, abs=1e-9)
+    # A few hundred by a few hundred in a house-sized area.
+    M, G = 300, 300
+    ca, cb = rng.uniform(0, 20, (M, 3)), rng.uniform(0, 20, (G, 3))
+    ya, yb = rng.uniform(-1.5, 1.5, M), rng.uniform(-1.5, 1.5, G)
+    sa, sb = rng.uniform(0.1, 2.0, (M, 3)), rng.uniform(0.1, 2.0, (G, 3))
+    t0 = time.perf_counter()
+    xy, _ = pairwise_ious_arrays(ca, ya, sa, cb, yb, sb)
+    assert time.perf_counter() - t0 < 2.0
+    assert xy.shape == (M, G)
+    i, j = np.argwhere(xy > 0)[0]
+    ref_xy, _ = _shapely_ious((ca[i], ya[i], sa[i]), (cb[j], yb[j], sb[j]))
+    assert xy[i, j] == pytest.approx(ref_xy, abs=1e-9)
+
+
+def test_convex_intersection_area_polygons():
+    tri = np.array([[[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]]])
+    sq = np.array([[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]])
+    # The unit square lies inside the triangle x + y <= 2.
+    assert convex_intersection_area(sq, tri)[0] == pytest.approx(1.0)
+    assert convex_intersection_area(tri, sq)[0] == pytest.approx(1.0)
+
+
+def _obj(oid, cls, x, y, yaw=0.0, size=(1.0, 1.0, 1.0), z=0.5, **kw):
+    return {"id": oid, "class": cls, "center": [x, y, z], "yaw": yaw, "size": list(size), **kw}
+
+
+def test_precision_recall_f1_by_hand():
+    gt = [
+        _obj(1, "chair", 0, 0),
+        _obj(2, "chair", 5, 0),
+        _obj(3, "couch", 0, 5, size=(2.0, 1.0, 1.0)),
+        _obj(4, "tv", 10, 10),
+    ]
+    maps = [
+        _obj(101, "chair", 0.5, 0),  # TP with gt 1: IoU 1/3, position error 0.5
+        _obj(102, "chair", 5, 0),  # TP with gt 2: IoU 1, position error 0
+        _obj(103, "couch", 0, 5.5, size=(2.0, 1.0, 1.0)),  # TP with gt 3: IoU 1/3, error 0.5
+        _obj(104, "tv", 0, 5),  # wrong class on the couch: FP
+        _obj(105, "bed", 20, 20),  # nothing there: FP
+    ]
+    r = evaluate(maps, gt)
+    assert (r["tp"], r["fp"], r["fn"]) == (3, 2, 1)
+    assert r["precision"] == pytest.approx(3 / 5)
+    assert r["recall"] == pytest.approx(3 / 4)
+    assert r["f1"] == pytest.approx(2 * 0.6 * 0.75 / (0.6 + 0.75))
+    assert r["mean_xy_iou"] == pytest.approx((1 / 3 + 1 + 1 / 3) / 3)
+    assert r["mean_viou"] == pytest.approx((1 / 3 + 1 + 1 / 3) / 3)
+    assert r["mean_position_error"] == pytest.approx((0.5 + 0 + 0.5) / 3)
+    assert sorted(r["fp_ids"]) == [104, 105] and r["fn_ids"] == [4]
+    assert r["duplicates"] == 0 and r["ghosts"] == 0
+    chair = r["per_class"]["chair"]
+    assert (chair["tp"], chair["fp"], chair["fn"]) == (2, 0, 0)
+    assert chair["precision"] == 1.0 and chair["recall"] == 1.0
+    tv = r["per_class"]["tv"]
+    assert (tv["tp"], tv["fp"], tv["fn"]) == (0, 1, 1) and tv["mean_xy_iou"] is None
+    assert r["per_class"]["bed"]["recall"] == 0.0
+
+
+def test_duplicate_counts_as_fp():
+    gt = [_obj(1, "couch", 0, 0, size=(2.0, 1.0, 1.0))]
+    maps = [
+        _obj(10, "couch", 0.1, 0, size=(2.0, 1.0, 1.0)),  # the better match
+        _obj(11, "couch", 0.8, 0, size=(1.0, 1.0, 1.0)),  # a partial view kept as a second object
+    ]
+    r = evaluate(maps, gt)
+    assert r["matches"][0]["map_id"] == 10 and r["matches"][0]["gt_id"] == 1
+    assert (r["tp"], r["fp"], r["fn"]) == (1, 1, 0)
+    assert r["duplicates"] == 1 and r["duplicate_ids"] == [11]
+    assert r["duplicate_ratio"] == pytest.approx(0.5)
+    assert r["precision"] == pytest.approx(0.5) and r["recall"] == 1.0
+
+
+def test_center_distance_limit():
+    gt = [_obj(1, "bed", 0, 0, size=(8.0, 8.0, 1.0))]
+    maps = [_obj(2, "bed", 3.5, 0, size=(1.0, 1.0, 1.0))]  # overlaps, but 3.5 m from the centre
+    assert evaluate(maps, gt)["tp"] == 0
+    assert evaluate(maps, gt, max_center_distance=4.0)["tp"] == 1
+
+
+def test_ghost_of_moved_and_removed_objects():
+    lap1 = [_obj(1, "chair", 0, 0), _obj(2, "potted plant", 4, 0), _obj(3, "tv", 8, 0)]
+    lap2 = {
+        "objects": [_obj(1, "chair", 2, 0), _obj(3, "tv", 8, 0)],
+        "changes": {"moved": [1], "removed": [2], "added": []},
+    }
+    maps = [
+        _obj(10, "chair", 0.1, 0),  # the chair where it was: ghost
+        _obj(11, "chair", 2, 0),  # the chair where it is: TP
+        _obj(12, "potted plant", 4, 0.1),  # the removed plant still in the map: ghost
+        _obj(13, "tv", 8, 0),  # TP
+        _obj(14, "tv", 8.2, 0),  # a duplicate of the tv (the tv did not move)
+    ]
+    r = evaluate(maps, lap2, previous_gt=lap1)
+    assert (r["tp"], r["fp"], r["fn"]) == (2, 3, 0)
+    assert sorted(r["ghost_ids"]) == [10, 12] and r["ghosts"] == 2
+    assert r["duplicate_ids"] == [14]
+    assert r["ghost_ratio"] == pytest.approx(2 / 5)
+    # Without the changes recorded they are inferred from the two laps.
+    r2 = evaluate(maps, lap2["objects"], previous_gt=lap1)
+    assert sorted(r2["ghost_ids"]) == [10, 12]
+    # Without the previous lap there are no ghosts to speak of.
+    assert evaluate(maps, lap2)["ghosts"] == 0
+
+
+def test_seen_only_excludes_unseen_ground_truth():
+    gt = [
+        _obj(1, "chair", 0, 0, seen_pixels=5000),
+        _obj(2, "chair", 5, 0, seen_pixels=0),  # never in view
+        _obj(3, "cup", 9, 0, size=(0.1, 0.1, 0.1), seen_pixels=0),  # never in view, but mapped
+    ]
+    maps = [_obj(10, "chair", 0, 0), _obj(11, "cup", 9, 0, size=(0.1, 0.1, 0.1))]
+    r = evaluate(maps, gt)
+    assert (r["tp"], r["fn"]) == (2, 1) and r["recall"] == pytest.approx(2 / 3)
+    r = evaluate(maps, gt, seen_only=True)
+    assert (r["tp"], r["fp"], r["fn"]) == (2, 0, 0)
+    assert r["recall"] == 1.0 and r["ignored_gt_ids"] == [2]
+    # A threshold above 0.
+    gt[0]["seen_pixels"] = 50
+    r = evaluate([], gt, seen_only=True, min_seen_pixels=100)
+    assert (r["fn"], r["ignored_gt"], r["recall"], r["precision"]) == (0, 3, 0.0, 0.0)
+
+
+def test_greedy_matching_is_one_to_one():
+    gt = [_obj(1, "chair", 0, 0), _obj(2, "chair", 0.9, 0)]
+    maps = [_obj(10, "chair", 0.45, 0), _obj(11, "chair", 1.0, 0)]
+    r = evaluate(maps, gt)
+    pairs = sorted((m["map_id"], m["gt_id"]) for m in r["matches"])
+    # 11-2 has the best IoU (0.9 / 1.1); then 10 takes the remaining gt 1.
+    assert pairs == [(10, 1), (11, 2)]
+
+
+def test_empty_and_bad_inputs():
+    r = evaluate([], [])
+    assert r["tp"] == r["fp"] == r["fn"] == 0 and r["precision"] == 0.0
+    assert r["mean_xy_iou"] is None and r["per_class"] == {}
+    with pytest.raises(LtcError):
+        evaluate([{"id": 1, "class": "chair", "center": [0, 0], "yaw": 0, "size": [1, 1, 1]}], [])
+    with pytest.raises(LtcError):
+        evaluate([{"id": 1, "center": [0, 0, 0], "yaw": 0, "size": [1, 1, 1]}], [])
+    with pytest.raises(LtcError):
+        evaluate([], [], max_center_distance=0)
