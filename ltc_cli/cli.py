@@ -176,6 +176,112 @@ def plugins_cmd(fmt):
     click.echo(f"{len(rows)} plugins: " + ", ".join(f"{v} {k}" for k, v in n.items()))
 
 
+def _floats(text, n_allowed, what, param):
+    """"1.5,-2[,0.3]" -> list of floats; a click usage error (exit 2) otherwise."""
+    try:
+        vals = [float(v) for v in str(text).split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) not in n_allowed or not all(np.isfinite(vals)):
+        raise click.BadParameter(f"expected {what}, not {text!r}", param_hint=param)
+    return vals
+
+
+@cli.command("query")
+@click.argument("map_path", type=click.Path())
+@click.option("--class", "classes", multiple=True, metavar="NAME", help="Only objects of this class (repeat for several).")
+@click.option("--near", metavar="X,Y[,Z]", help="Only objects whose centre is within --radius of this point (2-D with X,Y; 3-D with X,Y,Z), metres.")
+@click.option("--radius", type=float, metavar="R", help="Radius for --near, metres.")
+@click.option("--min-confidence", type=click.FloatRange(0, 1), metavar="P", help="Only objects whose class score is at least P.")
+@click.option("--id", "ids", multiple=True, type=click.IntRange(min=1), metavar="N", help="Only this object id (repeat for several).")
+@click.option("--removed", is_flag=True, help="Show the objects maintenance removed, with when and why.")
+@click.option("--format", "fmt", type=click.Choice(["table", "json", "csv"]), default="table", show_default=True)
+def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt):
+    """List the objects of MAP.h5 that pass every filter given."""
+    import csv
+    import io
+
+    from . import query as q
+    from .store import load_map
+
+    point = _floats(near, (2, 3), "X,Y or X,Y,Z", "--near") if near is not None else None
+    if (point is None) != (radius is None):
+        raise click.UsageError("--near and --radius go together")
+    if radius is not None and not (np.isfinite(radius) and radius >= 0):
+        raise click.BadParameter(f"must be >= 0, not {radius}", param_hint="--radius")
+    smap = load_map(map_path)
+    spec = q.Query(classes=classes, near=point, radius=radius, min_confidence=min_confidence, ids=ids, removed=removed)
+    result = q.select(smap, spec, map_path)
+    recs = q.records(smap, result)
+    if fmt == "json":
+        click.echo(json.dumps(recs, indent=2))
+    elif fmt == "csv":
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(q.flat_columns(result))
+        w.writerows(q.flat_rows(recs))
+        click.echo(buf.getvalue(), nl=False)
+    elif recs:
+        click.echo("\n".join(q.table_lines(recs, result)))
+    kind = "removed objects" if removed else "objects"
+    click.echo(f"{map_path}: {len(recs)} of {result.total} {kind}", err=True)
+
+
+@cli.command("export")
+@click.argument("map_path", type=click.Path())
+@click.option("--format", "fmt", type=click.Choice(["json", "geojson"]), required=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here (atomically) instead of stdout.")
+@click.option("--origin", metavar="LAT,LON[,HEADING_DEG]",
+              help="GeoJSON in WGS84 longitude/latitude: the map origin's latitude and longitude (degrees) and the "
+                   "bearing of the map's +y axis (degrees clockwise from true north; default 0).")
+def export_cmd(map_path, fmt, output, origin):
+    """Export the active objects of MAP.h5 as JSON or GeoJSON (RFC 7946)."""
+    from . import export as ex
+    from .store import load_map
+
+    geo_origin = None
+    if origin is not None:
+        if fmt != "geojson":
+            raise click.UsageError("--origin applies to --format geojson only")
+        try:
+            geo_origin = ex.parse_origin(origin)
+        except ex.ExportError as exc:
+            raise click.BadParameter(exc.message, param_hint="--origin") from None
+    smap = load_map(map_path)
+    doc = ex.export_json(smap, map_path) if fmt == "json" else ex.export_geojson(smap, geo_origin, map_path)
+    text = ex.dumps(doc)
+    if output:
+        ex.write_atomic(output, text)
+    else:
+        click.echo(text, nl=False)
+    n = len(doc["objects"] if fmt == "json" else doc["features"])
+    crs = "" if fmt == "json" else (" (WGS84 lon/lat)" if geo_origin else " (local metres)")
+    click.echo(f"{map_path}: {n} objects exported as {fmt}{crs} to {output or 'stdout'}", err=True)
+
+
+@cli.command("render")
+@click.argument("map_path", type=click.Path())
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The PNG to write.")
+@click.option("--ground-truth", "ground_truth", type=click.Path(), metavar="FILE|RECORDING",
+              help="ground_truth.json, or a recording folder holding one: drawn beneath as dashed outlines.")
+@click.option("--width", default=1200, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
+@click.option("--height", default=900, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
+@click.option("--labels/--no-labels", default=None, help="Label objects 'class #id' (default: when at most 300).")
+def render_cmd(map_path, output, ground_truth, width, height, labels):
+    """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a PNG."""
+    from pathlib import Path
+
+    from .render import load_ground_truth, render_map
+    from .store import load_map
+
+    smap = load_map(map_path)
+    gt = load_ground_truth(ground_truth) if ground_truth else None
+    res = render_map(smap, output, ground_truth=gt, width=width, height=height, labels=labels,
+                     map_name=Path(map_path).name)
+    extra = f", {res.ground_truth} ground-truth boxes" if gt is not None else ""
+    click.echo(f"{output}: {res.width}x{res.height} px, {_plural(res.objects, 'object')}{extra}")
+
+
 def main():
     cli(prog_name="ltc")
 

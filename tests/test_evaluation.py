@@ -104,6 +104,15 @@ def test_pairwise_matches_single_and_is_fast():
             ref_xy, ref_v = _shapely_ious(boxes_a[i], boxes_b[j])
             assert xy[i, j] == pytest.approx(ref_xy, abs=1e-9)
             assert vol[i, j] == pytest.approx(ref_v, abs=1e-9)
+    # geometry.Boxes (arrays) give the same matrix.
+    from ltc_cli.geometry import Boxes
+
+    arr = Boxes(
+        np.array([b[0] for b in boxes_a]), np.array([b[1] for b in boxes_a]),
+        np.array([b[2] for b in boxes_a]), np.ones((40, 8), dtype=bool),
+    )
+    xy2, vol2 = pairwise_ious(arr, boxes_b)
+    assert np.array_equal(xy, xy2) and np.array_equal(vol, vol2)
     # A few hundred by a few hundred in a house-sized area.
     M, G = 300, 300
     ca, cb = rng.uniform(0, 20, (M, 3)), rng.uniform(0, 20, (G, 3))
