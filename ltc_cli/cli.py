@@ -282,6 +282,71 @@ def render_cmd(map_path, output, ground_truth, width, height, labels):
     click.echo(f"{output}: {res.width}x{res.height} px, {_plural(res.objects, 'object')}{extra}")
 
 
+@cli.command()
+@click.argument("outdir", type=click.Path(file_okay=False))
+@click.option("--scene", type=click.Choice(["tiny", "small", "medium", "large"]), default="small", show_default=True)
+@click.option("--laps", type=click.IntRange(1, 100), default=2, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option("--width", type=click.IntRange(min=16), default=640, show_default=True)
+@click.option("--height", type=click.IntRange(min=16), default=480, show_default=True)
+@click.option("--set", "sets", multiple=True, metavar="OPTION=VALUE",
+              help="A simulator option, e.g. --set miss_rate=0.3 (see ltc_cli.simulate.DEFAULTS).")
+def simulate(outdir, scene, laps, seed, width, height, sets):
+    """Write a synthetic house as ltc-recording/1 folders OUTDIR/lap1, lap2, ..."""
+    from .config import parse_set
+    from .simulate import simulate as run_simulate
+
+    options = {}
+    for item in sets:
+        options.update(parse_set(item))
+    summary = run_simulate(outdir, scene=scene, laps=laps, seed=seed, width=width, height=height, **options)
+    frames = sum(lap["frames"] for lap in summary["laps"])
+    click.echo(f"{outdir}: {_plural(len(summary['laps']), 'lap')} of the {scene} house (seed {seed}), "
+               f"{frames} frames, {summary['bytes'] / 1e6:.1f} MB")
+
+
+def _fmt(v, spec=".3f"):
+    return "-" if v is None else format(v, spec)
+
+
+@cli.command()
+@click.argument("map_path", type=click.Path())
+@click.option("--ground-truth", "gt_path", required=True, type=click.Path(), help="ground_truth.json, or a recording folder holding one.")
+@click.option("--previous", "prev_path", type=click.Path(), help="The previous lap's ground truth, to count ghosts (default: the lap(N-1) folder beside a lapN recording).")
+@click.option("--max-distance", type=float, default=3.0, show_default=True, help="Largest centre distance of a match (m).")
+@click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
+def evaluate(map_path, gt_path, prev_path, max_distance, fmt):
+    """Compare a map with ground-truth objects (precision, recall, F1, IoU, VIoU, ghosts)."""
+    from .groundtruth import evaluate_map, previous_lap, read_ground_truth
+    from .store import load_map
+
+    smap = load_map(map_path)
+    gt = read_ground_truth(gt_path)
+    prev = read_ground_truth(prev_path) if prev_path else previous_lap(gt_path)
+    res = evaluate_map(smap, gt, prev, max_center_distance=max_distance)
+    if fmt == "json":
+        click.echo(json.dumps(res, indent=2, default=float))
+    else:
+        head = f"{'':<14}{'TP':>5}{'FP':>5}{'FN':>5} {'precision':>9} {'recall':>7} {'recall*':>7} {'F1':>6} {'XY IoU':>7} {'VIoU':>6} {'pos err':>8} {'dup':>4} {'ghost':>5}"
+        click.echo(head)
+
+        def line(name, r, rs):
+            click.echo(f"{name:<14}{r['tp']:>5}{r['fp']:>5}{r['fn']:>5} {_fmt(r['precision']):>9} {_fmt(r['recall']):>7} "
+                       f"{_fmt(rs):>7} {_fmt(r['f1']):>6} {_fmt(r['mean_xy_iou']):>7} {_fmt(r['mean_viou']):>6} "
+                       f"{_fmt(r['mean_position_error']):>8} {r['duplicates']:>4} {r['ghosts']:>5}")
+
+        for name, r in sorted(res["per_class"].items()):
+            line(name[:13], r, None)
+        line("all", res, res["recall_seen"])
+        click.echo("recall* counts only the ground-truth objects the robot saw; position error in metres")
+    click.echo(
+        f"{map_path}: precision {_fmt(res['precision'])}, recall {_fmt(res['recall'])} "
+        f"(seen {_fmt(res['recall_seen'])}), F1 {_fmt(res['f1'])}, XY IoU {_fmt(res['mean_xy_iou'])}, "
+        f"{res['duplicates']} duplicates, {res['ghosts']} ghosts",
+        err=(fmt == "json"),
+    )
+
+
 def main():
     cli(prog_name="ltc")
 

@@ -12,7 +12,6 @@ so :attr:`RenderResult.world_to_pixel` maps map coordinates to exactly those pix
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import zlib
@@ -21,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import LtcError, RecordingError
+from .errors import LtcError
 from .geometry import box_corners
 from .mapping import SemanticMap
 from .query import classify
-from .validation import validate
+from .groundtruth import read_ground_truth
 
 FILL_ALPHA = 0.35          # footprint fill over the white background
 GT_COLOUR = "#6e6e6e"      # ground-truth outlines
@@ -72,19 +71,7 @@ def load_ground_truth(path) -> list[dict]:
     Returns the validated list of {id, class, center, yaw, size, ...}; raises RecordingError /
     SchemaError naming the file.
     """
-    p = Path(path)
-    if p.is_dir():
-        p = p / "ground_truth.json"
-        if not p.is_file():
-            raise RecordingError("no ground_truth.json in this recording folder", path)
-    elif not p.is_file():
-        raise RecordingError("ground truth file does not exist", p)
-    try:
-        doc = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise RecordingError(f"not valid JSON ({exc})", p) from None
-    validate(doc, "ground_truth", p)
-    return list(doc["objects"])
+    return list(read_ground_truth(path)["objects"])
 
 
 @dataclass

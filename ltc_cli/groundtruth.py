@@ -1,0 +1,68 @@
+"""Ground truth files and the evaluation of a map against them (glue over evaluation.py)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .errors import RecordingError
+from .evaluation import evaluate
+from .mapping import SemanticMap
+from .validation import validate
+
+
+def read_ground_truth(path) -> dict:
+    """The validated ground_truth.json document (ltc-ground-truth/1), given the file or a recording
+    folder holding one. Raises RecordingError / SchemaError naming the file."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "ground_truth.json"
+        if not p.is_file():
+            raise RecordingError("no ground_truth.json in this recording folder", path)
+    elif not p.is_file():
+        raise RecordingError("ground truth file does not exist", p)
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise RecordingError(f"not valid JSON ({exc})", p) from None
+    validate(doc, "ground_truth", p)
+    doc["_path"] = str(p)
+    return doc
+
+
+def previous_lap(path) -> dict | None:
+    """The ground truth of the lap before, for a ``.../lapN`` recording (as ltc simulate writes
+    them) whose ``lap(N-1)`` sibling exists; else None."""
+    p = Path(path)
+    folder = p if p.is_dir() else p.parent
+    name = folder.name
+    if name.startswith("lap") and name[3:].isdigit() and int(name[3:]) > 1:
+        prev = folder.parent / f"lap{int(name[3:]) - 1}"
+        if (prev / "ground_truth.json").is_file():
+            return read_ground_truth(prev)
+    return None
+
+
+def map_objects(smap: SemanticMap) -> list[dict]:
+    """The active objects of a map as {id, class, center, yaw, size} (class = top non-other score)."""
+    t = smap.objects
+    rows = smap.active_rows()
+    top = t.scores[rows, :-1].argmax(axis=1) if len(rows) else np.zeros(0, int)
+    return [
+        {"id": int(r + 1), "class": smap.classes[int(c)], "center": t.center[r], "yaw": float(t.yaw[r]),
+         "size": t.size[r]}
+        for r, c in zip(rows, top)
+    ]
+
+
+def evaluate_map(smap: SemanticMap, gt: dict, previous: dict | None = None, **kw) -> dict:
+    """Metrics of DESIGN.md section 8 for a map, with recall over all ground-truth objects and
+    over those the robot saw (``recall_seen``)."""
+    objs = map_objects(smap)
+    res = evaluate(objs, gt, previous_gt=previous, **kw)
+    seen = evaluate(objs, gt, previous_gt=previous, seen_only=True, **kw)
+    res["recall_seen"] = seen["recall"]
+    res["f1_seen"] = seen["f1"]
+    return res
