@@ -44,8 +44,8 @@ def register_policies(register: Callable) -> None:
     """Register map-maintenance policies: ``register(name, factory)``.
 
     ``factory(options: dict) -> Policy`` (options: the ``maintenance`` config section);
-    ``Policy.non_detections(matched (M,) bool, visible_px (M,) float, min_visible_pixels) -> (M,)
-    bool`` receives, for the M map objects in view of a frame, whether each was matched by a
+    ``Policy.non_detections(matched (M,) bool, visible_px (M,) float, required_px (M,) float) ->
+    (M,) bool`` receives, for the M map objects in view of a frame, whether each was matched by a
     detection and how many of its pixels the camera should have seen (not hidden by other map
     objects nor by nearer observed depth), and returns which of them get a non-detection (eq. 4).
     """

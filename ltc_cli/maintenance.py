@@ -72,7 +72,7 @@ def box_entry_depths(boxes: Boxes, T_map_camera: np.ndarray, intr: Intrinsics, u
     return np.where(tmax >= entry, entry, np.inf)
 
 
-def visible_pixels(
+def pixel_counts(
     boxes: Boxes,
     T_map_camera: np.ndarray,
     depth_m: np.ndarray,
@@ -80,28 +80,42 @@ def visible_pixels(
     step: int,
     depth_tolerance: float,
     depth_range: tuple[float, float],
-) -> np.ndarray:
-    """Pixels (M,) of each box that the camera should see: the occupancy test of a non-detection.
+):
+    """Pixels of each box that the camera should see: (visible (M,), projected (M,)).
 
-    A pixel of box m counts when its ray enters m first among the given boxes (not hidden by other
-    map objects), within the depth range, and the observed depth there has a reading that is not
-    nearer than the box surface by more than ``depth_tolerance`` (not hidden by something that is
-    not in the map, such as a person). Counted at one ray per step x step block and scaled back to
-    pixels.
+    ``projected`` counts the pixels of each box's image within the depth range, whatever hides
+    them. ``visible`` counts those whose ray enters the box first among the given boxes (not hidden
+    by other map objects) and where the observed depth has a reading that is not nearer than the box
+    surface by more than ``depth_tolerance`` (not hidden by something that is not in the map, such as
+    a person). Counted at one ray per step x step block and scaled back to pixels.
     """
     m = len(boxes)
     if m == 0:
-        return np.zeros(0)
+        return np.zeros(0), np.zeros(0)
     u, v = ray_grid(intr, step)
     entry = box_entry_depths(boxes, T_map_camera, intr, u, v)  # (M, P)
+    in_range = np.isfinite(entry) & (entry >= depth_range[0]) & (entry <= depth_range[1])
     first = entry <= entry.min(axis=0, keepdims=True)
     obs = depth_m[v.astype(int), u.astype(int)]
-    seen = (
-        first
-        & np.isfinite(entry)
-        & (entry >= depth_range[0])
-        & (entry <= depth_range[1])
-        & (obs > 0)
-        & (obs >= entry - depth_tolerance)
-    )
-    return seen.sum(axis=1) * float(step * step)
+    seen = in_range & first & (obs > 0) & (obs >= entry - depth_tolerance)
+    scale = float(step * step)
+    return seen.sum(axis=1) * scale, in_range.sum(axis=1) * scale
+
+
+def visible_pixels(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range) -> np.ndarray:
+    """The ``visible`` half of :func:`pixel_counts`: (M,) pixels."""
+    return pixel_counts(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range)[0]
+
+
+def required_pixels(projected: np.ndarray, min_pixels: float, min_fraction, floor: float) -> np.ndarray:
+    """Visible pixels (M,) an object needs for a non-detection.
+
+    The paper asks for a fixed ``min_pixels`` (1000 at 640x480), which a cup or a book 2 m away never
+    reaches, so a small object that was taken away could never leave the map. With ``min_fraction``
+    set, an object whose whole image is smaller needs only that fraction of it visible, and never
+    fewer than ``floor`` pixels (about the smallest mask a detector reports).
+    """
+    need = np.full(projected.shape, float(min_pixels))
+    if min_fraction is not None:
+        need = np.maximum(floor, np.minimum(need, min_fraction * projected))
+    return need

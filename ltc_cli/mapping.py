@@ -14,7 +14,7 @@ import numpy as np
 from .association import nearest_under_threshold, thresholds_for
 from .geometry import Boxes, invert_pose
 from .integration import Box, fuse_scores, integrate_box, non_detection_vector
-from .maintenance import in_view, visible_pixels
+from .maintenance import in_view, pixel_counts, required_pixels
 from .modeling import model_detections
 from .types import Intrinsics
 
@@ -337,11 +337,13 @@ class Mapper:
         in_view_rows = np.array(cand_list, dtype=np.int64)
         if in_view_rows.size:
             m_cfg = cfg["maintenance"]
-            vis_px = visible_pixels(t.boxes(in_view_rows), T_map_camera, depth_m, intr,
-                                    m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range)
+            vis_px, proj_px = pixel_counts(t.boxes(in_view_rows), T_map_camera, depth_m, intr,
+                                           m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range)
             matched = np.array([r in matched_rows for r in in_view_rows])
-            scale = (intr.width * intr.height) / (640 * 480)
-            nondet = self.policy.non_detections(matched, vis_px, m_cfg["min_visible_pixels"] * scale)
+            scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
+            need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale,
+                                   m_cfg["min_visible_fraction"], m_cfg["min_pixels_floor"] * scale)
+            nondet = self.policy.non_detections(matched, vis_px, need)
             for row in in_view_rows[np.asarray(nondet, dtype=bool) & ~matched]:
                 res.non_detections += 1
                 if self._non_detection(int(row), frame_index, frame_key):
@@ -386,6 +388,21 @@ class Mapper:
             self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
             return True
         return False
+
+    def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
+        """End of a session: remove objects created in it that fewer than ``min_detections``
+        detections ever saw (a detector's one-off false positive, a confused class, a split mask).
+
+        Objects from earlier sessions are not touched. Returns how many were removed.
+        """
+        t = self.map.objects
+        rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.first_session == self.session))
+        for row in rows:
+            t.cols["status"][row] = REMOVED
+            self.index.remove(int(row))
+            self._log(frame_index, frame_key, "removed", row + 1,
+                      detail=f"unconfirmed: {int(t.n_det[row])} detection(s) in the session, fewer than {min_detections}")
+        return len(rows)
 
     def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
         """Instance de-duplication: in-view map objects that now match each other become one."""

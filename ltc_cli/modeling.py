@@ -13,7 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .geometry import EDGES_BY_AXIS, Boxes, backproject, fit_box, invert_pose, project, transform
+from .geometry import _CORNER_SIGNS, EDGES_BY_AXIS, Boxes, backproject, fit_box, invert_pose, project, transform
 from .types import Intrinsics
 
 # Half of the 26-neighbourhood: each undirected voxel adjacency is found once.
@@ -260,6 +260,26 @@ def vertex_visibility(
     return vis.reshape(shape)
 
 
+def unobserved_far_side(boxes: Boxes, cam_xyz: np.ndarray, thin_extent: float) -> np.ndarray:
+    """(M, 8) vertices whose position a single view cannot have measured.
+
+    One view of a cabinet or a fridge sees only its front: the points span no depth, so the box is a
+    slab padded to the minimum extent and its far vertices are guesses that the Z-buffer test cannot
+    catch (the observed front is nearer than them by less than the tolerance). Along a horizontal
+    box axis thinner than ``thin_extent``, the 4 vertices on the side away from the camera are
+    therefore not visible, and the box is not Defined until another view measures that side.
+    """
+    out = np.zeros((len(boxes), 8), dtype=bool)
+    rel = cam_xyz[:2] - boxes.center[:, :2]  # (M, 2) towards the camera
+    c, s = np.cos(boxes.yaw), np.sin(boxes.yaw)
+    toward = (c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1])  # in the box frame
+    for axis in (0, 1):
+        thin = boxes.size[:, axis] < thin_extent
+        far_sign = -np.sign(toward[axis])  # the side away from the camera
+        out |= thin[:, None] & (_CORNER_SIGNS[None, :, axis] == far_sign[:, None])
+    return out
+
+
 def defined_flags(visible: np.ndarray) -> np.ndarray:
     """A box is Defined (M,) when, for each of its 3 axes, some edge along it has both ends visible."""
     out = np.ones(visible.shape[:-1], dtype=bool)
@@ -348,4 +368,6 @@ def model_detections(
         p["occlusion_tolerance"],
         p["occlusion_window"],
     )
+    if p["thin_extent"]:
+        boxes.visible &= ~unobserved_far_side(boxes, T_map_camera[:3, 3], p["thin_extent"])
     return ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))

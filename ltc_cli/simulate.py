@@ -167,7 +167,7 @@ _SCENE_LAYOUT = {
     "medium": [["living", "kitchen"], ["bathroom", "bedroom"]],
     "large": [["living", "kitchen", "study"], ["bedroom", "bathroom", "bedroom"]],
 }
-_FRAMES_PER_ROOM = {"tiny": 12, "small": 12, "medium": 12, "large": 12}
+_FRAMES_PER_ROOM = {"tiny": 12, "small": 36, "medium": 36, "large": 36}
 
 WALL_HEIGHT = 2.5
 WALL_THICKNESS = 0.1

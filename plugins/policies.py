@@ -14,8 +14,8 @@ class NonDetectionPolicy:
     def __init__(self, options: dict):
         pass
 
-    def non_detections(self, matched, visible_px, min_visible_pixels):
-        return ~np.asarray(matched, dtype=bool) & (np.asarray(visible_px) >= min_visible_pixels)
+    def non_detections(self, matched, visible_px, required_px):
+        return ~np.asarray(matched, dtype=bool) & (np.asarray(visible_px) >= required_px)
 
 
 class StaticPolicy:
@@ -24,7 +24,7 @@ class StaticPolicy:
     def __init__(self, options: dict):
         pass
 
-    def non_detections(self, matched, visible_px, min_visible_pixels):
+    def non_detections(self, matched, visible_px, required_px):
         return np.zeros(len(matched), dtype=bool)
 
 
