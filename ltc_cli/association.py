@@ -62,3 +62,24 @@ def nearest_under_threshold(dist: np.ndarray, thr: np.ndarray) -> int:
         return -1
     masked = np.where(ok, dist, np.inf)
     return int(masked.argmin())
+
+
+def containment(det: Boxes, cands: Boxes) -> np.ndarray:
+    """Fraction (M,) of the detection box's volume that lies inside each candidate box.
+
+    Exact for Z-oriented boxes: footprint polygon intersection times the z overlap, over the
+    detection's volume.
+    """
+    from .evaluation import convex_intersection_area  # the exact polygon clipper
+
+    m = len(cands)
+    if m == 0:
+        return np.zeros(0)
+    foot_d = np.repeat(det.corners[:, :4, :2], m, axis=0)  # (M, 4, 2) counter-clockwise
+    foot_c = cands.corners[:, :4, :2]
+    area = convex_intersection_area(foot_d, foot_c)
+    zd0, zd1 = det.center[0, 2] - det.size[0, 2] / 2, det.center[0, 2] + det.size[0, 2] / 2
+    zc0, zc1 = cands.center[:, 2] - cands.size[:, 2] / 2, cands.center[:, 2] + cands.size[:, 2] / 2
+    dz = np.clip(np.minimum(zd1, zc1) - np.maximum(zd0, zc0), 0, None)
+    vol = float(np.prod(det.size[0]))
+    return area * dz / vol if vol > 0 else np.zeros(m)

@@ -55,7 +55,9 @@ def _plural(n: int, word: str) -> str:
 @click.option("--checkpoint-every", default=50, show_default=True, type=click.IntRange(min=0), help="Commit the map every N frames (0: only at the end).")
 @click.option("--strict", is_flag=True, help="Stop at the first bad frame instead of skipping it.")
 @click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
-def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict, reader):
+@click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(1, 64),
+              help="Threads that load and detect the next frames while the current one is mapped (the map is the same as with 1).")
+def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict, reader, jobs):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     from .ingest import ingest as run_ingest
     from .ingest import load_calibration
@@ -94,7 +96,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         summary = run_ingest(
             list(recordings), map_path, cfg, reader=reader, calibration=calib,
             checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=warn,
-            should_stop=lambda: stop["signal"] is not None,
+            should_stop=lambda: stop["signal"] is not None, jobs=jobs,
         )
     finally:
         if bar is not None:
@@ -344,6 +346,59 @@ def evaluate(map_path, gt_path, prev_path, max_distance, fmt):
         f"(seen {_fmt(res['recall_seen'])}), F1 {_fmt(res['f1'])}, XY IoU {_fmt(res['mean_xy_iou'])}, "
         f"{res['duplicates']} duplicates, {res['ghosts']} ghosts",
         err=(fmt == "json"),
+    )
+
+
+@cli.command("calibrate")
+@click.argument("recording", type=click.Path())
+@click.option("--detector", help="Detector plugin to measure (default: the config's, recorded).")
+@click.option("--config", "config_file", type=click.Path(dir_okay=False), help="YAML file of settings (detector options, maintenance.min_visible_pixels).")
+@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Override one setting, e.g. --set detector.options.score_threshold=0.4")
+@click.option("-o", "--output", default="calibration.yaml", show_default=True, type=click.Path(dir_okay=False), help="The calibration file to write (atomically).")
+@click.option("--min-pixels", type=click.IntRange(min=1), help="Fewest visible pixels of an instance that counts (default: maintenance.min_visible_pixels scaled to the image area).")
+@click.option("--iou", "iou_threshold", default=0.5, show_default=True, type=click.FloatRange(0, 1, min_open=True), help="Mask IoU for a detection to match an instance.")
+@click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
+@click.option("--table", is_flag=True, help="Print the per-class figures before the summary.")
+def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, table):
+    """Measure a detector on RECORDING's ground-truth instance masks; write v_Other and the figures."""
+    from .calibrate import calibrate, write_calibration
+
+    cfg = load_config(config_file, sets)
+    if detector:
+        cfg["detector"]["name"] = detector
+    bar = None
+    try:
+        progress = None
+        if sys.stderr.isatty():
+            from .ingest import open_recording
+
+            bar = click.progressbar(length=len(open_recording(recording, reader)), label="calibrate", file=sys.stderr)
+            bar.__enter__()
+            progress = bar.update
+
+        def warn(msg):
+            click.echo(f"warning: {msg}", err=True)
+
+        cal = calibrate(
+            recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader,
+            min_visible_pixels=cfg["maintenance"]["min_visible_pixels"], min_pixels=min_pixels,
+            iou_threshold=iou_threshold, progress=progress, warn=warn,
+        )
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+    doc = write_calibration(cal, output)
+    if table:
+        click.echo(f"{'class':<16}{'inst':>6}{'det':>6}{'TP':>6}{'FP':>6}{'FN':>6} {'recall':>7} {'precision':>9} {'v_other':>7}")
+        for name, s in doc["per_class"].items():
+            click.echo(f"{name[:15]:<16}{s['instances']:>6}{s['detected']:>6}{s['tp']:>6}{s['fp']:>6}{s['fn']:>6} "
+                       f"{_fmt(s['recall']):>7} {_fmt(s['precision']):>9} {_fmt(s['v_other']):>7}")
+    for w in cal.warnings:
+        click.echo(f"warning: {w}", err=True)
+    click.echo(
+        f"{output}: {_plural(cal.frames, 'frame')}, {_plural(doc['instances'], 'instance')}, "
+        f"recall {_fmt(doc['recall'], '.2f')} (any class {_fmt(doc['detection_rate'], '.2f')}), "
+        f"precision {_fmt(doc['precision'], '.2f')}, v_other {doc['v_other']:.2f}"
     )
 
 

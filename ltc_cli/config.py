@@ -12,7 +12,7 @@ from .errors import ConfigError
 
 # Keys whose value is a free-form mapping (plugin options) or may be null.
 _FREE = {("detector", "options")}
-_NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction")}
+_NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class")}
 
 
 def defaults() -> dict:

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .association import nearest_under_threshold, thresholds_for
+from .association import containment, nearest_under_threshold, thresholds_for
 from .geometry import Boxes, invert_pose
 from .integration import Box, fuse_scores, integrate_box, non_detection_vector
 from .maintenance import in_view, pixel_counts, required_pixels
@@ -236,6 +236,8 @@ class Mapper:
         for row in smap.active_rows():
             self.index.insert(int(row), t.center[row], t.size[row])
         self.n_classes = len(smap.classes)
+        floor = set(config["modeling"]["floor_classes"] or [])
+        self.grounded_class = np.array([c in floor for c in smap.classes] + [False])
         self.nondet_vector = non_detection_vector(self.n_classes, config["maintenance"]["v_other"])
 
     # -- helpers -----------------------------------------------------------------------------
@@ -275,11 +277,13 @@ class Mapper:
         intr: Intrinsics,
         depth_range: tuple[float, float],
         clock=None,
+        floor_z: float | None = None,
     ) -> FrameResult:
         """Model, associate, integrate and maintain one frame.
 
         masks: list of (H, W) bool; scores: list of (C+1,) class vectors over the map's classes.
         T_map_camera: (4, 4) camera-to-map pose (up rotation already applied).
+        floor_z: the floor's height in the map frame, when known (grounds floor-standing furniture).
         """
         import time
 
@@ -290,7 +294,9 @@ class Mapper:
         T_camera_map = invert_pose(T_map_camera)
 
         t0 = clock()
-        modeled = model_detections(masks, depth_m, intr, T_map_camera, cfg["modeling"], depth_range)
+        grounded = np.array([self.grounded_class[int(self._top_class(v))] for v in scores], dtype=bool)
+        modeled = model_detections(masks, depth_m, intr, T_map_camera, cfg["modeling"], depth_range,
+                                   grounded=grounded, floor_z=floor_z)
         res.boxes = len(modeled.source)
         t1 = clock()
 
@@ -313,6 +319,12 @@ class Mapper:
                                      a_cfg["threshold_same_class"], a_cfg["threshold_other_class"])
                 best = nearest_under_threshold(dist, thr)
                 j = int(rows[best]) if best >= 0 else -1
+                if j < 0 and a_cfg["containment"]:
+                    j = self._containing(modeled.boxes.take(slice(k, k + 1)), int(self._top_class(s_det)), rows)
+                    if j >= 0:
+                        # A box mostly inside a map object of its class is a partial view of it,
+                        # whatever its vertices say (an occluder close behind fools the Z-buffer).
+                        det_box.defined = False
             t_assoc += clock() - ta
             if j >= 0:
                 self._integrate(j, det_box, s_det, 1.0, frame_index, frame_key)
@@ -357,6 +369,40 @@ class Mapper:
                        "maintenance": t3 - t2, "merge": t4 - t3}
         return res
 
+    def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
+        """End of a session: remove the tentative objects created in it, those detected fewer than
+        ``min_detections`` times that were also missed at least once in clear view.
+
+        A detector's one-off false positive (a confused class, a split mask, a blob on a wall) is
+        seen once and then missed; a real object seen once and never again in clear view (a table
+        a weak detector found in one frame) stays. Objects of earlier sessions are not touched.
+        Returns how many were removed.
+        """
+        t = self.map.objects
+        rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.n_nondet >= 1)
+                              & (t.first_session == self.session))
+        for row in rows:
+            t.cols["status"][row] = REMOVED
+            self.index.remove(int(row))
+            self._log(frame_index, frame_key, "removed", row + 1,
+                      detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) and {int(t.n_nondet[row])} "
+                              f"non-detection(s) in the session that created it"))
+        return len(rows)
+
+    def _containing(self, det: Boxes, det_class: int, rows: np.ndarray) -> int:
+        """The same-class candidate that contains most of the detection box (at least
+        ``association.containment`` of its volume), or -1."""
+        t = self.map.objects
+        a_cfg = self.cfg["association"]
+        frac = containment(det, t.boxes(rows))
+        same = self._top_class(t.scores[rows]) == det_class
+        # A detection inside an object of another class is most often that object with its class
+        # confused, but it needs to be further inside to say so.
+        need = np.where(same, a_cfg["containment"], a_cfg["containment_other_class"] or np.inf)
+        frac = np.where(frac >= need, frac, -1.0)
+        best = int(frac.argmax())
+        return int(rows[best]) if frac[best] >= 0 else -1
+
     def _integrate(self, row, det_box: Box, s_det, w_det, frame_index, frame_key, log=True):
         t = self.map.objects
         i_cfg = self.cfg["integration"]
@@ -389,21 +435,6 @@ class Mapper:
             return True
         return False
 
-    def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
-        """End of a session: remove objects created in it that fewer than ``min_detections``
-        detections ever saw (a detector's one-off false positive, a confused class, a split mask).
-
-        Objects from earlier sessions are not touched. Returns how many were removed.
-        """
-        t = self.map.objects
-        rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.first_session == self.session))
-        for row in rows:
-            t.cols["status"][row] = REMOVED
-            self.index.remove(int(row))
-            self._log(frame_index, frame_key, "removed", row + 1,
-                      detail=f"unconfirmed: {int(t.n_det[row])} detection(s) in the session, fewer than {min_detections}")
-        return len(rows)
-
     def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
         """Instance de-duplication: in-view map objects that now match each other become one."""
         t = self.map.objects
@@ -419,7 +450,14 @@ class Mapper:
             dist = self.metric.distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
             thr = thresholds_for(int(top[a]), top[rest], a_cfg["threshold_same_class"],
                                  a_cfg["threshold_other_class"])
-            for b in np.flatnonzero(dist <= thr):
+            close = dist <= thr
+            if a_cfg["containment"]:
+                # Either box mostly inside the other, same class: one object seen in parts.
+                inside = np.maximum(containment(boxes.take(slice(a, a + 1)), boxes.take(rest)),
+                                    [containment(boxes.take(slice(b, b + 1)), boxes.take(slice(a, a + 1)))[0] for b in rest])
+                need = np.where(top[rest] == top[a], a_cfg["containment"], a_cfg["containment_other_class"] or np.inf)
+                close |= inside >= need
+            for b in np.flatnonzero(close):
                 pairs.append((float(dist[b]), int(rows[a]), int(rows[rest[b]])))
         merged = 0
         gone: set = set()

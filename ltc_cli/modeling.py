@@ -280,6 +280,45 @@ def unobserved_far_side(boxes: Boxes, cam_xyz: np.ndarray, thin_extent: float) -
     return out
 
 
+def ground_to_floor(boxes: Boxes, grounded: np.ndarray, floor_z: float, max_gap: float) -> None:
+    """Extend boxes (in place) of furniture that stands on the floor down to it, when their bottom
+    was not seen.
+
+    A chair behind a table shows only its back above the table top; its box would be a 0.4 m slab
+    in mid-air. Furniture stands on the floor, so when a box of a floor-standing class has a bottom
+    vertex that is not visible (hidden or out of the image) and its bottom is above the floor by
+    less than ``max_gap``, its bottom is the floor. The added vertices stay not visible (inferred,
+    not observed), so the box is not Defined by this.
+    """
+    zmin = boxes.center[:, 2] - boxes.size[:, 2] / 2
+    zmax = boxes.center[:, 2] + boxes.size[:, 2] / 2
+    gap = zmin - floor_z
+    hidden_bottom = ~boxes.visible[:, :4].all(axis=1)
+    extend = grounded & hidden_bottom & (gap > 0.02) & (gap < max_gap)
+    if extend.any():
+        boxes.center[extend, 2] = (floor_z + zmax[extend]) / 2
+        boxes.size[extend, 2] = zmax[extend] - floor_z
+        boxes.visible[extend, :4] = False
+        boxes._corners = None
+
+
+def estimate_floor_z(points_z: np.ndarray, band: float = 0.05, min_share: float = 0.03):
+    """Height of the floor (map frame, z up) from the z (N,) of depth points of a few frames, or None.
+
+    The floor is the lowest large horizontal surface: start from the 2nd percentile (below it lie
+    only noise and reflections) and take the median of the points within ``band`` of it. When fewer
+    than ``min_share`` of the points lie there, the floor was not in view: None.
+    """
+    z = np.asarray(points_z, dtype=np.float64)
+    if z.size < 100:
+        return None
+    guess = float(np.percentile(z, 2))
+    near = np.abs(z - guess) < band
+    if near.mean() < min_share:
+        return None
+    return float(np.median(z[near]))
+
+
 def defined_flags(visible: np.ndarray) -> np.ndarray:
     """A box is Defined (M,) when, for each of its 3 axes, some edge along it has both ends visible."""
     out = np.ones(visible.shape[:-1], dtype=bool)
@@ -309,6 +348,8 @@ def model_detections(
     T_map_camera: np.ndarray,
     p: dict,
     depth_range: tuple[float, float],
+    grounded: np.ndarray | None = None,
+    floor_z: float | None = None,
 ) -> ModeledDetections:
     """Masks (H, W) of one frame -> boxes in the map frame (DESIGN.md 1.1).
 
@@ -370,4 +411,6 @@ def model_detections(
     )
     if p["thin_extent"]:
         boxes.visible &= ~unobserved_far_side(boxes, T_map_camera[:3, 3], p["thin_extent"])
+    if grounded is not None and floor_z is not None:
+        ground_to_floor(boxes, np.asarray(grounded)[np.array(src)], floor_z, p["ground_max_gap"])
     return ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))

@@ -30,7 +30,7 @@ _EVENT_INT = ("session", "frame", "object_id", "other_id")
 SESSION_COLUMNS = {
     "started": "s", "finished": "s", "status": "s", "sources": "s", "recordings": "s",
     "readers": "s", "detector": "s", "metric": "s", "policy": "s", "settings": "s", "v_other": "f",
-    "ltc_version": "s", "frames_done": "i", "frames_skipped": "i", "up_rotation": "s",
+    "ltc_version": "s", "frames_done": "i", "frames_skipped": "i", "up_rotation": "s", "floor_z": "s",
 }
 
 
@@ -139,6 +139,9 @@ def load_map(path) -> SemanticMap:
         for i in range(n_s):
             row = {}
             for key, kind in SESSION_COLUMNS.items():
+                if key not in sg:  # a column newer than the file: empty
+                    row[key] = "" if kind == "s" else 0
+                    continue
                 v = sg[key][i]
                 row[key] = (v.decode() if isinstance(v, bytes) else str(v)) if kind == "s" else (
                     int(v) if kind == "i" else float(v))
