@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import numpy as np  # noqa: E402
 
 from ltc_cli import plugins  # noqa: E402
-from ltc_cli.config import defaults  # noqa: E402
+from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.mapping import ACTIVE, Mapper, SemanticMap  # noqa: E402
 from tests.scene import INTR, T_world_camera, render  # noqa: E402
 
@@ -96,8 +96,9 @@ def run(n_far: int, frames: int, cfg: dict):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--set", dest="sets", action="append", default=[], help="config override key=value")
     args = ap.parse_args()
-    cfg = defaults()
+    cfg = load_config(None, args.sets)
     print(f"640x480, {args.frames} frames, one thread; median ms per frame (detection and decoding excluded)")
     results = {}
     for n_far in (190, 99_990):

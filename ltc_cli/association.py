@@ -83,3 +83,24 @@ def containment(det: Boxes, cands: Boxes) -> np.ndarray:
     dz = np.clip(np.minimum(zd1, zc1) - np.maximum(zd0, zc0), 0, None)
     vol = float(np.prod(det.size[0]))
     return area * dz / vol if vol > 0 else np.zeros(m)
+
+
+def pairwise_containment(boxes: Boxes) -> np.ndarray:
+    """(M, M) matrix whose [i, j] is the fraction of box i's volume inside box j (diagonal 1)."""
+    from .evaluation import convex_intersection_area
+
+    m = len(boxes)
+    out = np.eye(m)
+    if m < 2:
+        return out
+    i, j = np.triu_indices(m, k=1)
+    foot = boxes.corners[:, :4, :2]
+    area = convex_intersection_area(foot[i], foot[j])
+    z0 = boxes.center[:, 2] - boxes.size[:, 2] / 2
+    z1 = boxes.center[:, 2] + boxes.size[:, 2] / 2
+    inter = area * np.clip(np.minimum(z1[i], z1[j]) - np.maximum(z0[i], z0[j]), 0, None)
+    vol = np.prod(boxes.size, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[i, j] = np.where(vol[i] > 0, inter / vol[i], 0.0)
+        out[j, i] = np.where(vol[j] > 0, inter / vol[j], 0.0)
+    return out

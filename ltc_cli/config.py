@@ -12,7 +12,7 @@ from .errors import ConfigError
 
 # Keys whose value is a free-form mapping (plugin options) or may be null.
 _FREE = {("detector", "options")}
-_NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class")}
+_NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class"), ("modeling", "edge_jump")}
 
 
 def defaults() -> dict:
@@ -110,8 +110,8 @@ def _validate(cfg: dict) -> None:
     m = cfg["modeling"]
     if not 0 <= m["min_depth"] < m["max_depth"]:
         raise ConfigError("modeling.min_depth must be >= 0 and below modeling.max_depth")
-    if m["clustering"] not in ("voxel", "dbscan"):
-        raise ConfigError("modeling.clustering must be voxel or dbscan")
+    if m["clustering"] not in ("grid", "voxel", "dbscan"):
+        raise ConfigError("modeling.clustering must be grid, voxel or dbscan")
     for key in ("eps", "min_extent", "max_points", "min_samples"):
         if m[key] <= 0:
             raise ConfigError(f"modeling.{key} must be positive")

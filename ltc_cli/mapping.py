@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .association import containment, nearest_under_threshold, thresholds_for
+from .association import containment, nearest_under_threshold, pairwise_containment, thresholds_for
 from .geometry import Boxes, invert_pose
 from .integration import Box, fuse_scores, integrate_box, non_detection_vector
 from .maintenance import in_view, pixel_counts, required_pixels
@@ -444,6 +444,12 @@ class Mapper:
         a_cfg = self.cfg["association"]
         boxes = t.boxes(rows)
         top = self._top_class(t.scores[rows])
+        if a_cfg["containment"]:
+            inside = pairwise_containment(boxes)
+            inside = np.maximum(inside, inside.T)  # either one inside the other
+            need = np.where(top[:, None] == top[None, :], a_cfg["containment"],
+                            a_cfg["containment_other_class"] or np.inf)
+            contained = inside >= need
         pairs = []
         for a in range(len(rows) - 1):
             rest = np.arange(a + 1, len(rows))
@@ -452,11 +458,7 @@ class Mapper:
                                  a_cfg["threshold_other_class"])
             close = dist <= thr
             if a_cfg["containment"]:
-                # Either box mostly inside the other, same class: one object seen in parts.
-                inside = np.maximum(containment(boxes.take(slice(a, a + 1)), boxes.take(rest)),
-                                    [containment(boxes.take(slice(b, b + 1)), boxes.take(slice(a, a + 1)))[0] for b in rest])
-                need = np.where(top[rest] == top[a], a_cfg["containment"], a_cfg["containment_other_class"] or np.inf)
-                close |= inside >= need
+                close |= contained[a, rest]  # one object seen in parts
             for b in np.flatnonzero(close):
                 pairs.append((float(dist[b]), int(rows[a]), int(rows[rest[b]])))
         merged = 0

@@ -34,7 +34,7 @@ def test_thinning_drops_a_boundary_band_bounded_by_max_iterations():
     assert (thin_mask(small, 5, 0.05) == small).all()
 
 
-@pytest.mark.parametrize("method", ["voxel", "dbscan"])
+@pytest.mark.parametrize("method", ["grid", "voxel", "dbscan"])
 def test_largest_cluster_drops_bleed_and_noise(method):
     rng = np.random.default_rng(0)
     chair = chair_points(rng)
@@ -57,6 +57,30 @@ def test_voxel_components_match_dbscan_on_the_chair():
     exact = largest_clusters(pts, group, 0.15, 20, "dbscan")
     for a, b in zip(vox, exact):
         assert set(a.tolist()) == set(b.tolist())
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_grid_clusters_match_exact_dbscan(seed):
+    """Two chairs 0.6 m apart, a wall patch behind one, joined to it by a sparse line of flying
+    pixels: exact DBSCAN (min_samples 20) keeps each chair apart from the wall; so must the grid."""
+    rng = np.random.default_rng(seed)
+    chair = chair_points(rng)
+    other = chair_points(rng) + [0, 1.1, 0]
+    wall = rng.uniform([0.9, -0.5, 0.0], [0.92, 0.5, 1.2], (600, 3))
+    bridge = np.linspace([0.27, 0, 0.7], [0.9, 0, 0.7], 12) + rng.normal(0, 0.005, (12, 3))
+    pts = np.vstack([chair, other, wall, bridge])
+    group = np.r_[np.zeros(len(chair), int), np.ones(len(other), int), np.zeros(len(wall) + len(bridge), int)]
+    exact = largest_clusters(pts, group, 0.15, 20, "dbscan")
+    grid = largest_clusters(pts, group, 0.15, 20, "grid")
+    for a, b in zip(exact, grid):
+        a, b = set(a.tolist()), set(b.tolist())
+        assert len(a ^ b) <= 0.02 * len(a)  # the same points but for a few borders
+    # Group 0's largest cluster is the chair alone, without the wall behind the bridge.
+    wall_idx = set(range(2 * len(chair), 2 * len(chair) + len(wall)))
+    assert set(range(len(chair))) <= set(grid[0].tolist()) and not wall_idx & set(grid[0].tolist())
+    # Voxel components (min_samples 1) follow the bridge and join chair and wall.
+    vox = largest_clusters(pts, group, 0.15, 20, "voxel")
+    assert wall_idx <= set(vox[0].tolist())
 
 
 def test_dbscan_labels_by_hand():
