@@ -370,23 +370,21 @@ class Mapper:
         return res
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
-        """End of a session: remove the tentative objects created in it, those detected fewer than
-        ``min_detections`` times that were also missed at least once in clear view.
+        """End of a session: remove the tentative objects created in it, those that fewer than
+        ``min_detections`` detections saw.
 
-        A detector's one-off false positive (a confused class, a split mask, a blob on a wall) is
-        seen once and then missed; a real object seen once and never again in clear view (a table
-        a weak detector found in one frame) stays. Objects of earlier sessions are not touched.
-        Returns how many were removed.
+        As a tracker confirms a track after a second hit: a detector's one-off false positive (a
+        confused class, a split mask, a blob on a wall) is seen once, a real object in a recording
+        is seen again. Objects of earlier sessions are not touched. Returns how many were removed.
         """
         t = self.map.objects
-        rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.n_nondet >= 1)
-                              & (t.first_session == self.session))
+        rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.first_session == self.session))
         for row in rows:
             t.cols["status"][row] = REMOVED
             self.index.remove(int(row))
             self._log(frame_index, frame_key, "removed", row + 1,
-                      detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) and {int(t.n_nondet[row])} "
-                              f"non-detection(s) in the session that created it"))
+                      detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) in the session that created it, "
+                              f"fewer than {min_detections}"))
         return len(rows)
 
     def _containing(self, det: Boxes, det_class: int, rows: np.ndarray) -> int:
