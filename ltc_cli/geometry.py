@@ -102,18 +102,20 @@ class Boxes:
 def convex_hull_xy(xy: np.ndarray) -> np.ndarray:
     """Counter-clockwise hull vertices (H, 2) of points xy (N, 2); degenerate sets give 1-2 points."""
     xy = np.asarray(xy, dtype=np.float64)
-    if len(xy) >= 3:
+    if len(xy) == 0:
+        raise ValueError("no points")
+    d = xy - xy.mean(axis=0)
+    # The 2x2 scatter says at once whether the set is (nearly) a line: a flat face seen edge-on
+    # from above. qhull would refuse it, and its exception costs more than this test.
+    evals, evecs = np.linalg.eigh(d.T @ d)
+    if len(xy) >= 3 and evals[0] > 1e-12 * max(evals[1], 1e-300):
         try:
             hull = ConvexHull(xy)
             return xy[hull.vertices]  # qhull gives 2-D hulls counter-clockwise
         except QhullError:
             pass
     # Collinear or tiny sets: the two extreme points along the principal direction.
-    if len(xy) == 0:
-        raise ValueError("no points")
-    d = xy - xy.mean(axis=0)
-    _, _, vt = np.linalg.svd(d, full_matrices=False)
-    t = d @ vt[0]
+    t = d @ evecs[:, 1]
     return xy[[int(np.argmin(t)), int(np.argmax(t))]]
 
 

@@ -149,6 +149,7 @@ def voxel_components(points_xyz: np.ndarray, group: np.ndarray, eps: float):
 _OFFSETS_2 = np.array(
     [(dx, dy, dz) for dx in range(-2, 3) for dy in range(-2, 3) for dz in range(-2, 3) if (dx, dy, dz) > (0, 0, 0)]
 )
+_NEAR_2 = np.abs(_OFFSETS_2).max(axis=1) <= 1
 
 
 def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
@@ -175,15 +176,15 @@ def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, mi
     uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
     m = len(uniq)
-    rows, cols, near = [], [], []
-    for off in _OFFSETS_2:
-        target = uniq + off @ np.array([bx, by, 1], dtype=np.int64)
+    rows, cols = [], []
+    for off in _OFFSETS_2 @ np.array([bx, by, 1], dtype=np.int64):
+        target = uniq + off
         pos = np.minimum(np.searchsorted(uniq, target), m - 1)
         hit = np.flatnonzero(uniq[pos] == target)
         rows.append(hit)
         cols.append(pos[hit])
-        near.append(np.full(len(hit), bool(np.abs(off).max() <= 1)))
-    r, c, nb = np.concatenate(rows), np.concatenate(cols), np.concatenate(near)
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    nb = np.repeat(_NEAR_2, [len(h) for h in rows])  # the pair's cells touch (26-neighbourhood)
     density = (counts + np.bincount(r[nb], weights=counts[c[nb]], minlength=m)
                + np.bincount(c[nb], weights=counts[r[nb]], minlength=m))
     core = density >= min_samples
