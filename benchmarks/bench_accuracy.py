@@ -73,15 +73,19 @@ def main():
     ap.add_argument("--houses", type=int, default=4)
     ap.add_argument("--scene", default="small")
     ap.add_argument("--first-seed", type=int, default=101)
+    ap.add_argument("--config", help="ltc config file (e.g. docs/paper.yaml for the paper's behaviour)")
     ap.add_argument("--set", dest="sets", action="append", default=[], help="ltc config override")
     ap.add_argument("--sim", dest="sim", action="append", default=[], help="simulator option override")
     ap.add_argument("--combos", default="all", help="all, or e.g. vertex/non-detection")
+    ap.add_argument("--calibrate", action="store_true",
+                    help="measure v_Other with ltc calibrate on each house's lap 1 and ingest with it")
     args = ap.parse_args()
     combos = COMBOS if args.combos == "all" else [tuple(c.split("/")) for c in args.combos.split(",")]
     t0 = time.time()
     houses = [house(args.scene, args.first_seed + i, args.sim) for i in range(args.houses)]
     print(f"{args.houses} simulated '{args.scene}' houses (seeds {args.first_seed}..{args.first_seed + args.houses - 1}), "
-          f"2 laps each; prepared in {time.time() - t0:.0f} s; overrides: {args.sets or 'none'}")
+          f"2 laps each; prepared in {time.time() - t0:.0f} s; config: {args.config or 'defaults'}; "
+          f"overrides: {args.sets or 'none'}")
     head = (f"{'':<28}{'TP':>5}{'FP':>5}{'FN':>5} {'prec':>6} {'recall':>6} {'recall*':>7} {'F1':>6} "
             f"{'XY IoU':>7} {'VIoU':>6} {'poserr':>7} {'dup':>6} {'ghost':>6}")
     print(head)
@@ -90,10 +94,15 @@ def main():
         secs = 0.0
         frames = 0
         for h in houses:
+            extra = []
+            if args.calibrate:
+                from ltc_cli.calibrate import calibrate
+
+                extra = [f"maintenance.v_other={calibrate(h / 'lap1', 'recorded', {}).v_other}"]
             with tempfile.TemporaryDirectory() as tmp:
                 m = Path(tmp) / "map.h5"
                 for lap in (1, 2):
-                    cfg = load_config(None, [f"association.metric={metric}", f"maintenance.policy={policy}", *args.sets])
+                    cfg = load_config(args.config, [f"association.metric={metric}", f"maintenance.policy={policy}", *args.sets, *extra])
                     s = ingest([h / f"lap{lap}"], m, cfg)
                     secs += s.seconds
                     frames += s.frames_done

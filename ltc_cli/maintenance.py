@@ -107,15 +107,19 @@ def visible_pixels(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, de
     return pixel_counts(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range)[0]
 
 
-def required_pixels(projected: np.ndarray, min_pixels: float, min_fraction, floor: float) -> np.ndarray:
+def required_pixels(projected: np.ndarray, min_pixels: float, min_fraction, floor: float,
+                    min_share: float = 0.0) -> np.ndarray:
     """Visible pixels (M,) an object needs for a non-detection.
 
     The paper asks for a fixed ``min_pixels`` (1000 at 640x480), which a cup or a book 2 m away never
     reaches, so a small object that was taken away could never leave the map. With ``min_fraction``
     set, an object whose whole image is smaller needs only that fraction of it visible, and never
-    fewer than ``floor`` pixels (about the smallest mask a detector reports).
+    fewer than ``floor`` pixels (about the smallest mask a detector reports). With ``min_share``,
+    at least that share of the object's whole image must be visible too.
     """
     need = np.full(projected.shape, float(min_pixels))
     if min_fraction is not None:
         need = np.maximum(floor, np.minimum(need, min_fraction * projected))
-    return need
+    # A detector misses a mostly hidden object far more often than a whole one: its silence about
+    # an object of which it saw only a sliver says little. Ask for min_share of the object's image.
+    return np.maximum(need, min_share * projected)

@@ -354,7 +354,8 @@ class Mapper:
             matched = np.array([r in matched_rows for r in in_view_rows])
             scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
             need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale,
-                                   m_cfg["min_visible_fraction"], m_cfg["min_pixels_floor"] * scale)
+                                   m_cfg["min_visible_fraction"], m_cfg["min_pixels_floor"] * scale,
+                                   m_cfg["min_visible_share"])
             nondet = self.policy.non_detections(matched, vis_px, need)
             for row in in_view_rows[np.asarray(nondet, dtype=bool) & ~matched]:
                 res.non_detections += 1
