@@ -164,6 +164,10 @@ class MaskRcnnDetector:
         Detection's ``scores`` (K,) holds the instance's score at its class and 0 elsewhere.
     """
 
+    # detect() keeps no state between calls (onnxruntime sessions may be run from several threads),
+    # so ingest --jobs may run it on several frames at once.
+    thread_safe = True
+
     def __init__(self, model_path, options: dict | None = None):
         opts = dict(DEFAULTS)
         given = dict(options or {})

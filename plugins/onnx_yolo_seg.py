@@ -209,6 +209,10 @@ class YoloSegDetector:
         every Detection's ``scores`` (K,) is aligned with it.
     """
 
+    # detect() keeps no state between calls (onnxruntime sessions may be run from several threads),
+    # so ingest --jobs may run it on several frames at once.
+    thread_safe = True
+
     def __init__(self, model_path, options: dict | None = None):
         opts = dict(DEFAULTS)
         given = dict(options or {})

@@ -19,6 +19,8 @@ from ltc_cli.types import Detection, Frame
 
 
 class RecordedDetector:
+    # detect() only reads files, so ingest --jobs may run it on several frames at once.
+    thread_safe = True
     def __init__(self, folder: Path, classes: list[str]):
         self.folder = folder
         self.classes = classes

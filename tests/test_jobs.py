@@ -138,8 +138,10 @@ def test_frames_already_in_the_map_are_not_loaded(laps, tmp_path):
 
 
 class Probe(RecordedDetector):
-    """The recorded detector, slowed down, counting how many threads are in ``detect`` at once."""
+    """The recorded detector, slowed down, counting how many threads are in ``detect`` at once;
+    it declares itself not thread-safe (as a third-party detector that says nothing is taken)."""
 
+    thread_safe = False
     active = 0
     peak = 0
     lock = threading.Lock()
