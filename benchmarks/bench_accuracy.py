@@ -85,6 +85,7 @@ def main():
     houses = [house(args.scene, args.first_seed + i, args.sim) for i in range(args.houses)]
     print(f"{args.houses} simulated '{args.scene}' houses (seeds {args.first_seed}..{args.first_seed + args.houses - 1}), "
           f"2 laps each; prepared in {time.time() - t0:.0f} s; config: {args.config or 'defaults'}; "
+          f"v_Other: {'calibrated per house on lap 1' if args.calibrate else 'from the config'}; "
           f"overrides: {args.sets or 'none'}")
     head = (f"{'':<28}{'TP':>5}{'FP':>5}{'FN':>5} {'prec':>6} {'recall':>6} {'recall*':>7} {'F1':>6} "
             f"{'XY IoU':>7} {'VIoU':>6} {'poserr':>7} {'dup':>6} {'ghost':>6}")
