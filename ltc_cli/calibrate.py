@@ -74,7 +74,6 @@ inspection and for policies that use them.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -84,6 +83,7 @@ import yaml
 from PIL import Image
 
 from . import __version__, plugins
+from .fileio import write_text_atomic
 from .errors import FrameError, LtcError, RecordingError
 from .validation import validate
 
@@ -519,18 +519,10 @@ def write_calibration(cal: Calibration | dict, path) -> dict:
     text = "# ltc calibration: the measured response of a detector (ltc calibrate); read by\n" \
            "# `ltc ingest --calibration`, which uses v_other. See docs/calibration.md.\n"
     text += yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, allow_unicode=True, width=110)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
+        write_text_atomic(path, text)
     except OSError as exc:
         raise LtcError(f"cannot write the calibration ({exc.strerror})", path) from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return doc
 
 

@@ -30,12 +30,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
+from .fileio import write_text_atomic
 from .errors import LtcError
 from .geometry import box_corners
 from .mapping import SemanticMap
@@ -334,16 +334,7 @@ def dumps(doc: dict) -> str:
 
 def write_atomic(path, text: str) -> None:
     """Write ``text`` to ``path`` atomically: temporary file beside it, fsync, ``os.replace``."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
+        write_text_atomic(path, text)
     except OSError as exc:
         raise ExportError(f"cannot write the export ({exc.strerror})", path) from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()

@@ -13,7 +13,6 @@ so :attr:`RenderResult.world_to_pixel` maps map coordinates to exactly those pix
 from __future__ import annotations
 
 import math
-import os
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import LtcError
+from .fileio import atomic_target
 from .geometry import box_corners
 from .mapping import SemanticMap
 from .query import classify
@@ -252,14 +252,10 @@ def render_map(
     M = np.array([[1.0, 0, 0], [0, -1.0, float(buf.shape[0])], [0, 0, 1.0]]) @ ax.transData.get_affine().get_matrix()
     xlim_drawn, ylim_drawn = ax.get_xlim(), ax.get_ylim()
 
-    tmp = out_path.with_name(f".{out_path.name}.tmp-{os.getpid()}.png")
     try:
-        Image.fromarray(np.ascontiguousarray(buf)).save(tmp, format="PNG", optimize=False)
-        os.replace(tmp, out_path)
+        with atomic_target(out_path) as tmp:
+            Image.fromarray(np.ascontiguousarray(buf)).save(tmp, format="PNG", optimize=False)
     except OSError as exc:
         raise RenderError(f"cannot write the picture ({exc.strerror or exc})", out_path) from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return RenderResult(str(out_path), width, height, int(len(rows)), int(len(gt_rings)), bool(labels), M,
                         tuple(map(float, xlim_drawn)), tuple(map(float, ylim_drawn)))

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import __version__
 from .errors import MapFormatError, MapLockedError
+from .fileio import atomic_target
 from .mapping import _COLUMNS, Event, ObjectTable, SemanticMap
 
 FORMAT = "ltc-map"
@@ -162,50 +163,34 @@ def load_map(path) -> SemanticMap:
 def save_map(smap: SemanticMap, path) -> None:
     """Write the whole map atomically: a temporary file beside it, fsync, then os.replace."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["format_version"] = VERSION
-            f.attrs["ltc_version"] = __version__
-            f.attrs["created"] = smap.created
-            f.attrs["description"] = (
-                "ltc object map: Z-oriented boxes (center, yaw about z, size), class vectors over "
-                "classes + other, in a z-up map frame; see the ltc DESIGN, section 4"
-            )
-            f.create_dataset("classes", data=np.array(smap.classes, dtype=object), dtype=_STR)
-            f.create_dataset("up_rotation", data=np.asarray(smap.up_rotation, dtype=np.float64))
-            og = f.create_group("objects")
-            og.create_dataset("id", data=smap.objects.ids)
-            for name, arr in smap.objects.columns().items():
-                og.create_dataset(name, data=arr)
-            eg = f.create_group("events")
-            ev = smap.events
-            for k in _EVENT_INT:
-                eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=np.int64))
-            for k in _EVENT_STR:
-                eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=object), dtype=_STR)
-            sg = f.create_group("sessions")
-            for key, kind in SESSION_COLUMNS.items():
-                vals = [s.get(key) for s in smap.sessions]
-                if kind == "s":
-                    vals = [v if isinstance(v, str) else json.dumps(v) for v in vals]
-                    sg.create_dataset(key, data=np.array(vals, dtype=object), dtype=_STR)
-                else:
-                    sg.create_dataset(key, data=np.array(vals, dtype=np.int64 if kind == "i" else np.float64))
-            f.create_dataset("frames", data=np.array(sorted(smap.frame_keys), dtype=object), dtype=_STR)
-            f.flush()
-        fd = os.open(tmp, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
-        dfd = os.open(path.parent if str(path.parent) else ".", os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_target(path) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["format"] = FORMAT
+        f.attrs["format_version"] = VERSION
+        f.attrs["ltc_version"] = __version__
+        f.attrs["created"] = smap.created
+        f.attrs["description"] = (
+            "ltc object map: Z-oriented boxes (center, yaw about z, size), class vectors over "
+            "classes + other, in a z-up map frame; see the ltc DESIGN, section 4"
+        )
+        f.create_dataset("classes", data=np.array(smap.classes, dtype=object), dtype=_STR)
+        f.create_dataset("up_rotation", data=np.asarray(smap.up_rotation, dtype=np.float64))
+        og = f.create_group("objects")
+        og.create_dataset("id", data=smap.objects.ids)
+        for name, arr in smap.objects.columns().items():
+            og.create_dataset(name, data=arr)
+        eg = f.create_group("events")
+        ev = smap.events
+        for k in _EVENT_INT:
+            eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=np.int64))
+        for k in _EVENT_STR:
+            eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=object), dtype=_STR)
+        sg = f.create_group("sessions")
+        for key, kind in SESSION_COLUMNS.items():
+            vals = [s.get(key) for s in smap.sessions]
+            if kind == "s":
+                vals = [v if isinstance(v, str) else json.dumps(v) for v in vals]
+                sg.create_dataset(key, data=np.array(vals, dtype=object), dtype=_STR)
+            else:
+                sg.create_dataset(key, data=np.array(vals, dtype=np.int64 if kind == "i" else np.float64))
+        f.create_dataset("frames", data=np.array(sorted(smap.frame_keys), dtype=object), dtype=_STR)
+        f.flush()

@@ -1,8 +1,6 @@
 """End-to-end ingest: sessions, resume after SIGKILL, a second writer, and bad input."""
 
-import json
 import os
-import shutil
 import signal
 import subprocess
 import sys

@@ -6,7 +6,7 @@ from ltc_cli.config import defaults
 from ltc_cli.geometry import Boxes, invert_pose
 from ltc_cli.maintenance import in_view, visible_pixels
 from ltc_cli.mapping import ACTIVE, REMOVED, Mapper, SemanticMap
-from tests.scene import INTR, T_world_camera, face_rect, render
+from tests.scene import INTR, T_world_camera, render
 
 CLASSES = ["chair", "table"]
 
