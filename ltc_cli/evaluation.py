@@ -20,7 +20,7 @@ that is supposed to be one-to-one with the furniture.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
