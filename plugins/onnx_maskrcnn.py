@@ -34,6 +34,7 @@ from ltc_cli import hookimpl
 from ltc_cli.errors import FrameError, PluginError
 from ltc_cli.images import load_rgb
 from ltc_cli.types import Detection, Frame
+from ltc_plugins._onnx_common import Options
 
 NAME = "onnx-maskrcnn"
 
@@ -69,51 +70,13 @@ DEFAULTS = {
 }
 
 
-def _fail(message: str, path=None):
-    raise PluginError(f"{NAME}: {message}", path=path)
-
-
-def _number(opts: dict, key: str, lo: float, hi: float, lo_open=False, hi_open=False) -> float:
-    v = opts[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        _fail(f"option {key!r} must be a number, got {v!r}")
-    if (v <= lo if lo_open else v < lo) or (v >= hi if hi_open else v > hi):
-        lo_b, hi_b = "(" if lo_open else "[", ")" if hi_open else "]"
-        _fail(f"option {key!r} must be in {lo_b}{lo}, {hi}{hi_b}, got {v!r}")
-    return float(v)
-
-
-def _int(opts: dict, key: str, lo: int) -> int:
-    v = opts[key]
-    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-        _fail(f"option {key!r} must be an integer >= {lo}, got {v!r}")
-    return int(v)
-
-
-def _names_list(value, key: str) -> list[str]:
-    if not isinstance(value, (list, tuple)) or not value or not all(
-        isinstance(n, str) and n for n in value
-    ):
-        _fail(f"option {key!r} must be a non-empty list of class names, got {value!r}")
-    if len(set(value)) != len(value):
-        _fail(f"option {key!r} lists a class twice")
-    return list(value)
-
-
-def _session(path: Path, threads: int):
-    try:
-        import onnxruntime as ort
-    except ImportError:  # pragma: no cover - onnxruntime is a dependency
-        _fail("needs the onnxruntime package (pip install onnxruntime)")
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = threads
-    so.inter_op_num_threads = 1
-    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    so.log_severity_level = 3
-    try:
-        return ort.InferenceSession(str(path), sess_options=so, providers=["CPUExecutionProvider"])
-    except Exception as exc:  # onnxruntime raises its own exception types for bad files
-        _fail(f"cannot load ONNX model ({exc.__class__.__name__}: {str(exc).splitlines()[0]})", path)
+_OPTIONS = Options(NAME)
+_fail = _OPTIONS.fail
+_number = _OPTIONS.number
+_int = _OPTIONS.integer
+_names_list = _OPTIONS.names
+_model_path = _OPTIONS.model_path
+_session = _OPTIONS.session
 
 
 def paste_mask(mask28: np.ndarray, box_xyxy, height: int, width: int, threshold: float) -> np.ndarray:
