@@ -6,6 +6,7 @@ No I/O here: the map store (store.py) saves and loads :class:`SemanticMap`; the 
 
 from __future__ import annotations
 
+import time
 from collections import defaultdict
 from dataclasses import dataclass, field
 
@@ -285,8 +286,6 @@ class Mapper:
         T_map_camera: (4, 4) camera-to-map pose (up rotation already applied).
         floor_z: the floor's height in the map frame, when known (grounds floor-standing furniture).
         """
-        import time
-
         clock = clock or time.perf_counter
         res = FrameResult(detections=len(masks))
         cfg, t = self.cfg, self.map.objects
@@ -304,7 +303,6 @@ class Mapper:
         cand = self._candidates(T_map_camera, T_camera_map, intr, depth_range[1])
         cand_list = list(cand)
         matched_rows: set = set()
-        new_rows: list = []
         t_assoc = 0.0
         for k in range(len(modeled.source)):
             ta = clock()
@@ -340,7 +338,6 @@ class Mapper:
                 self.index.insert(row, det_box.center, det_box.size)
                 self._log(frame_index, frame_key, "created", row + 1)
                 cand_list.append(row)
-                new_rows.append(row)
                 matched_rows.add(row)
                 res.created += 1
         t2 = clock()
