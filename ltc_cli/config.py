@@ -11,7 +11,7 @@ import yaml
 from .errors import ConfigError
 
 # Keys whose value is a free-form mapping (plugin options) or may be null.
-_FREE = {("detector", "options")}
+_FREE = {("detector", "options"), ("modeling", "class_depth")}
 _NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class"), ("modeling", "edge_jump")}
 
 

@@ -96,7 +96,10 @@ class Boxes:
         return len(self.yaw)
 
     def take(self, idx) -> "Boxes":
-        return Boxes(self.center[idx], self.yaw[idx], self.size[idx], self.visible[idx])
+        out = Boxes(self.center[idx], self.yaw[idx], self.size[idx], self.visible[idx])
+        if self._corners is not None:  # already computed: keep them
+            out._corners = self._corners[idx]
+        return out
 
 
 def convex_hull_xy(xy: np.ndarray) -> np.ndarray:

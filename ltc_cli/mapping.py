@@ -239,6 +239,8 @@ class Mapper:
         self.n_classes = len(smap.classes)
         floor = set(config["modeling"]["floor_classes"] or [])
         self.grounded_class = np.array([c in floor for c in smap.classes] + [False])
+        priors = config["modeling"]["class_depth"] or {}
+        self.depth_prior = np.array([float(priors.get(c, np.nan)) for c in smap.classes] + [np.nan])
         self.nondet_vector = non_detection_vector(self.n_classes, config["maintenance"]["v_other"])
 
     # -- helpers -----------------------------------------------------------------------------
@@ -294,8 +296,9 @@ class Mapper:
 
         t0 = clock()
         grounded = np.array([self.grounded_class[int(self._top_class(v))] for v in scores], dtype=bool)
+        top = [int(self._top_class(v)) for v in scores]
         modeled = model_detections(masks, depth_m, intr, T_map_camera, cfg["modeling"], depth_range,
-                                   grounded=grounded, floor_z=floor_z)
+                                   grounded=grounded, floor_z=floor_z, class_depth=self.depth_prior[top])
         res.boxes = len(modeled.source)
         t1 = clock()
 

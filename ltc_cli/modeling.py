@@ -103,10 +103,14 @@ def depth_edges(depth_m: np.ndarray, u: np.ndarray, v: np.ndarray, z: np.ndarray
     bridge; dropping pixels at depth jumps removes the bridges.
     """
     h, w = depth_m.shape
+    flat = depth_m.ravel()
+    idx = v * w + u
+    limit = jump * z
     edge = np.zeros(len(z), dtype=bool)
-    for du, dv in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        n = depth_m[np.clip(v + dv, 0, h - 1), np.clip(u + du, 0, w - 1)]
-        edge |= (n > 0) & (np.abs(n - z) > jump * z)
+    # Neighbours by flat index; a point on the image edge compares with itself there (no jump).
+    for off, ok in ((1, u < w - 1), (-1, u > 0), (w, v < h - 1), (-w, v > 0)):
+        n = flat[np.where(ok, idx + off, idx)]
+        edge |= (n > 0) & (np.abs(n - z) > limit)
     return edge
 
 
@@ -362,6 +366,43 @@ def unobserved_far_side(boxes: Boxes, cam_xyz: np.ndarray, thin_extent: float) -
     return out
 
 
+def _background_gap(depth_m: np.ndarray, rows: tuple, cols: tuple, z_obj: float, band: int = 8) -> float:
+    """How far behind the object (metres along the view) the nearest background is: the median
+    depth on the top and sides of the mask's bounding box (rows, cols: first and last) grown by
+    ``band`` px, minus the object's median depth; inf when nothing is seen there."""
+    h, w = depth_m.shape
+    r0, r1 = max(rows[0] - band, 0), min(rows[1] + band, h - 1)
+    c0, c1 = max(cols[0] - band, 0), min(cols[1] + band, w - 1)
+    ring = np.concatenate([depth_m[r0, c0 : c1 + 1], depth_m[r0 : r1 + 1, c0], depth_m[r0 : r1 + 1, c1]])
+    ring = ring[ring > 0]
+    return float(np.median(ring)) - z_obj if ring.size else np.inf
+
+
+def deepen_slabs(boxes: Boxes, depth_prior: np.ndarray, gap: np.ndarray, cam_xyz: np.ndarray,
+                 thin_extent: float) -> None:
+    """Give one-view slabs (in place) the typical depth of their class, away from the camera.
+
+    A fridge or an oven against a wall is only ever seen from the front, so no view measures its
+    depth. Along a horizontal axis thinner than ``thin_extent`` the box grows away from the camera
+    to ``depth_prior`` (NaN: no prior), but never past the background seen around the object
+    (``gap`` metres behind it: the wall). The grown side stays not visible (see
+    :func:`unobserved_far_side`).
+    """
+    rel = cam_xyz[:2] - boxes.center[:, :2]
+    c, s = np.cos(boxes.yaw), np.sin(boxes.yaw)
+    toward = (c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1])
+    axes = (np.stack([c, s], -1), np.stack([-s, c], -1))
+    for axis in (0, 1):
+        size = boxes.size[:, axis]
+        target = np.minimum(depth_prior, size + np.maximum(gap - 0.02, 0.0))
+        grow = np.where((size < thin_extent) & np.isfinite(target) & (target > size), target - size, 0.0)
+        if grow.any():
+            away = -np.sign(toward[axis])[:, None] * axes[axis]  # (M, 2) unit, away from the camera
+            boxes.center[:, :2] += away * (grow / 2)[:, None]
+            boxes.size[:, axis] += grow
+            boxes._corners = None
+
+
 def ground_to_floor(boxes: Boxes, grounded: np.ndarray, floor_z: float, max_gap: float) -> None:
     """Extend boxes (in place) of furniture that stands on the floor down to it, when their bottom
     was not seen.
@@ -433,6 +474,7 @@ def model_detections(
     depth_range: tuple[float, float],
     grounded: np.ndarray | None = None,
     floor_z: float | None = None,
+    class_depth: np.ndarray | None = None,
 ) -> ModeledDetections:
     """Masks (H, W) of one frame -> boxes in the map frame (DESIGN.md 1.1).
 
@@ -441,7 +483,7 @@ def model_detections(
     Defined.
     """
     min_d, max_d = depth_range
-    pts_list, groups, sources, pads = [], [], [], []
+    pts_list, groups, sources, pads, backs = [], [], [], [], []
     for i, mask in enumerate(masks):
         crop, r0, c0, k = thin_crop(mask, p["thin_max_iterations"], p["thin_fraction"])
         if crop is None:
@@ -451,6 +493,8 @@ def model_detections(
             continue
         # Pixels lost at each side: the thinning band, and on average half a subsampling step.
         pads.append((k + (stride - 1) / 2.0, float(np.median(z))))
+        backs.append(_background_gap(depth_m, (r0, r0 + crop.shape[0] - 1), (c0, c0 + crop.shape[1] - 1),
+                                     pads[-1][1]))
         pts_cam = backproject(u, v, z, intr)
         pts_list.append(transform(T_map_camera, pts_cam))
         groups.append(np.full(len(z), len(sources)))
@@ -464,7 +508,7 @@ def model_detections(
     points = np.concatenate(pts_list)
     group = np.concatenate(groups)
     clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"])
-    centers, yaws, sizes, src, npts = [], [], [], [], []
+    centers, yaws, sizes, src, npts, gaps = [], [], [], [], [], []
     for g, idx in enumerate(clusters):
         if idx is None:
             continue
@@ -478,6 +522,7 @@ def model_detections(
         centers.append(center)
         yaws.append(yaw)
         sizes.append(size)
+        gaps.append(backs[g])
         src.append(sources[g])
         npts.append(len(idx))
     if not centers:
@@ -494,6 +539,9 @@ def model_detections(
     )
     if p["thin_extent"]:
         boxes.visible &= ~unobserved_far_side(boxes, T_map_camera[:3, 3], p["thin_extent"])
+        if class_depth is not None:
+            deepen_slabs(boxes, np.asarray(class_depth)[np.array(src)], np.array(gaps), T_map_camera[:3, 3],
+                         p["thin_extent"])
     if grounded is not None and floor_z is not None:
         ground_to_floor(boxes, np.asarray(grounded)[np.array(src)], floor_z, p["ground_max_gap"])
     return ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))
