@@ -32,7 +32,7 @@ def _check_and_merge(base: dict, update: dict, where: str, trail: tuple = ()) ->
         if path in _FREE:
             if not isinstance(value, dict):
                 raise ConfigError(f"{dotted} must be a mapping", where)
-            base[key] = {**current, **value}
+            base[key] = dict(value)  # a mapping setting is replaced whole, so {} empties it
         elif isinstance(current, dict):
             _check_and_merge(current, value, where, path)
         else:
