@@ -20,7 +20,7 @@ def defaults() -> dict:
     return yaml.safe_load(text)
 
 
-def _check_and_merge(base: dict, update: dict, where: str, trail: tuple = ()) -> None:
+def _check_and_merge(base: dict, update: dict, where: str, trail: tuple = (), replace: bool = True) -> None:
     if not isinstance(update, dict):
         raise ConfigError(f"{'.'.join(trail) or 'top level'} must be a mapping", where)
     for key, value in update.items():
@@ -32,9 +32,10 @@ def _check_and_merge(base: dict, update: dict, where: str, trail: tuple = ()) ->
         if path in _FREE:
             if not isinstance(value, dict):
                 raise ConfigError(f"{dotted} must be a mapping", where)
-            base[key] = dict(value)  # a mapping setting is replaced whole, so {} empties it
+            # A file replaces a mapping setting whole (so {} empties it); each --set adds one key.
+            base[key] = dict(value) if replace else {**current, **value}
         elif isinstance(current, dict):
-            _check_and_merge(current, value, where, path)
+            _check_and_merge(current, value, where, path, replace)
         else:
             base[key] = _coerce(current, value, path, where)
 
@@ -101,7 +102,7 @@ def load_config(path=None, sets: list[str] = ()) -> dict:
         if data is not None:
             _check_and_merge(cfg, data, str(p))
     for item in sets:
-        _check_and_merge(cfg, parse_set(item), f"--set {item}")
+        _check_and_merge(cfg, parse_set(item), f"--set {item}", replace=False)
     _validate(cfg)
     return cfg
 
