@@ -208,12 +208,3 @@ def test_ltc_plugins_env_names_a_missing_module(monkeypatch):
         monkeypatch.delenv("LTC_PLUGINS")
         plugins.reset()
 
-
-def test_config_mapping_settings(tmp_path):
-    from ltc_cli.config import load_config
-
-    f = tmp_path / "c.yaml"
-    f.write_text("modeling:\n  class_depth: {}\n")
-    assert load_config(f)["modeling"]["class_depth"] == {}  # a file replaces the table whole
-    cfg = load_config(None, ["detector.options.model=x.onnx", "detector.options.score_threshold=0.3"])
-    assert cfg["detector"]["options"] == {"model": "x.onnx", "score_threshold": 0.3}  # --set adds keys
