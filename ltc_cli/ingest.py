@@ -132,11 +132,6 @@ def frame_setup_for(rec: Recording, sample_frames: int = 5):
     return R_up, floor_z
 
 
-def up_rotation_for(rec: Recording, sample_frames: int = 5) -> np.ndarray:
-    """R (3, 3) that turns the recording's world into a z-up map frame."""
-    return frame_setup_for(rec, sample_frames)[0]
-
-
 def ingest(
     recording_paths: list,
     map_path,
