@@ -6,7 +6,28 @@ import math
 import os
 from pathlib import Path
 
-from ltc_cli.errors import PluginError
+import numpy as np
+
+from ltc_cli.errors import FrameError, PluginError
+from ltc_cli.images import load_rgb
+from ltc_cli.types import Frame
+
+
+def frame_rgb(frame: Frame, name: str) -> np.ndarray:
+    """The frame's colour image (H, W, 3), loaded when the reader left it on disk; it must have the
+    depth image's size, since the masks are applied to the depth."""
+    rgb = frame.rgb
+    if rgb is None:
+        if not frame.rgb_path:
+            raise FrameError(f"{name} needs the colour image; frame {frame.key} has none")
+        rgb = load_rgb(frame.rgb_path)
+    if frame.depth_m is not None and tuple(frame.depth_m.shape[:2]) != tuple(rgb.shape[:2]):
+        raise FrameError(
+            f"colour image is {rgb.shape[1]}x{rgb.shape[0]} but depth is "
+            f"{frame.depth_m.shape[1]}x{frame.depth_m.shape[0]}",
+            frame.rgb_path or frame.key,
+        )
+    return rgb
 
 
 class Options:

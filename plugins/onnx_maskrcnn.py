@@ -31,10 +31,9 @@ import numpy as np
 from PIL import Image
 
 from ltc_cli import hookimpl
-from ltc_cli.errors import FrameError, PluginError
-from ltc_cli.images import load_rgb
+from ltc_cli.errors import PluginError
 from ltc_cli.types import Detection, Frame
-from ltc_plugins._onnx_common import Options
+from ltc_plugins._onnx_common import Options, frame_rgb
 
 NAME = "onnx-maskrcnn"
 
@@ -263,17 +262,7 @@ class MaskRcnnDetector:
 
     def detect(self, frame: Frame) -> list[Detection]:
         """Instances in a frame; each score vector is one-hot at its class, scaled by its score."""
-        rgb = frame.rgb
-        if rgb is None:
-            if not frame.rgb_path:
-                raise FrameError(f"{NAME} needs the colour image; frame {frame.key} has none")
-            rgb = load_rgb(frame.rgb_path)
-        if frame.depth_m is not None and tuple(frame.depth_m.shape[:2]) != tuple(rgb.shape[:2]):
-            raise FrameError(
-                f"colour image is {rgb.shape[1]}x{rgb.shape[0]} but depth is "
-                f"{frame.depth_m.shape[1]}x{frame.depth_m.shape[0]}",
-                frame.rgb_path or frame.key,
-            )
+        rgb = frame_rgb(frame, NAME)
         _, labels, scores, masks = self.predict(rgb)
         out = []
         for label, score, mask in zip(labels, scores, masks):

@@ -27,10 +27,9 @@ import numpy as np
 from PIL import Image
 
 from ltc_cli import hookimpl
-from ltc_cli.errors import FrameError, PluginError
-from ltc_cli.images import load_rgb
+from ltc_cli.errors import PluginError
 from ltc_cli.types import Detection, Frame
-from ltc_plugins._onnx_common import Options
+from ltc_plugins._onnx_common import Options, frame_rgb
 
 NAME = "onnx-yolo-seg"
 DEFAULTS = {
@@ -378,17 +377,7 @@ class YoloSegDetector:
         they add up to more than 1 they are scaled to sum to 1 (a Detection's scores are
         probabilities, the rest is "none of these").
         """
-        rgb = frame.rgb
-        if rgb is None:
-            if not frame.rgb_path:
-                raise FrameError(f"{NAME} needs the colour image; frame {frame.key} has none")
-            rgb = load_rgb(frame.rgb_path)
-        if frame.depth_m is not None and tuple(frame.depth_m.shape[:2]) != tuple(rgb.shape[:2]):
-            raise FrameError(
-                f"colour image is {rgb.shape[1]}x{rgb.shape[0]} but depth is "
-                f"{frame.depth_m.shape[1]}x{frame.depth_m.shape[0]}",
-                frame.rgb_path or frame.key,
-            )
+        rgb = frame_rgb(frame, NAME)
         _, _, scores, masks = self.predict(rgb)
         total = scores.sum(axis=1, keepdims=True)
         scores = np.where(total > 1.0, scores / np.maximum(total, 1e-12), scores)
