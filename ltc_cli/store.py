@@ -48,6 +48,8 @@ class MapLock:
         self.fd = None
 
     def acquire(self) -> "MapLock":
+        if not self.map_path.parent.is_dir():
+            raise MapLockedError("the map's folder does not exist", self.map_path)
         try:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
