@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 
 from . import __version__
-from .errors import MapFormatError, MapLockedError
+from .errors import LtcError, MapFormatError, MapLockedError
 from .fileio import atomic_target
 from .mapping import _COLUMNS, Event, ObjectTable, SemanticMap
 
@@ -49,7 +49,7 @@ class MapLock:
 
     def acquire(self) -> "MapLock":
         if not self.map_path.parent.is_dir():
-            raise MapLockedError("the map's folder does not exist", self.map_path)
+            raise LtcError("the map's folder does not exist", self.map_path)
         try:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
