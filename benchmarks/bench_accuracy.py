@@ -95,16 +95,16 @@ def main():
         secs = 0.0
         frames = 0
         for h in houses:
-            extra = []
-            if args.calibrate:
+            cal = None
+            if args.calibrate:  # as `ltc calibrate lap1` then `ltc ingest --calibration`
                 from ltc_cli.calibrate import calibrate
 
-                extra = [f"maintenance.v_other={calibrate(h / 'lap1', 'recorded', {}).v_other}"]
+                cal = calibrate(h / "lap1", "recorded", {}).to_document()
             with tempfile.TemporaryDirectory() as tmp:
                 m = Path(tmp) / "map.h5"
                 for lap in (1, 2):
-                    cfg = load_config(args.config, [f"association.metric={metric}", f"maintenance.policy={policy}", *args.sets, *extra])
-                    s = ingest([h / f"lap{lap}"], m, cfg)
+                    cfg = load_config(args.config, [f"association.metric={metric}", f"maintenance.policy={policy}", *args.sets])
+                    s = ingest([h / f"lap{lap}"], m, cfg, calibration=cal)
                     secs += s.seconds
                     frames += s.frames_done
                     gt = read_ground_truth(h / f"lap{lap}")

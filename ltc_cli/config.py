@@ -11,7 +11,7 @@ import yaml
 from .errors import ConfigError
 
 # Keys whose value is a free-form mapping (plugin options) or may be null.
-_FREE = {("detector", "options"), ("modeling", "class_depth")}
+_FREE = {("detector", "options"), ("modeling", "class_depth"), ("maintenance", "v_other_per_class")}
 _NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class"), ("modeling", "edge_jump")}
 
 
@@ -119,6 +119,9 @@ def _validate(cfg: dict) -> None:
     v = cfg["maintenance"]["v_other"]
     if not 0 < v < 1:
         raise ConfigError("maintenance.v_other must be between 0 and 1")
+    for name, vc in cfg["maintenance"]["v_other_per_class"].items():
+        if isinstance(vc, bool) or not isinstance(vc, (int, float)) or not 0 < vc < 1:
+            raise ConfigError(f"maintenance.v_other_per_class.{name} must be between 0 and 1")
     mw = cfg["integration"]["max_weight"]
     if mw is not None and mw < 1:
         raise ConfigError("integration.max_weight must be >= 1 or null")

@@ -162,6 +162,10 @@ def ingest(
     map_path = Path(map_path)
     if calibration is not None:
         config["maintenance"]["v_other"] = float(calibration["v_other"])
+        config["maintenance"]["v_other_per_class"] = {
+            name: float(stats["v_other"]) for name, stats in (calibration.get("per_class") or {}).items()
+            if isinstance(stats, dict) and stats.get("v_other") is not None
+        }
 
     # Everything that can be checked before the map is touched is checked first.
     recordings = [open_recording(p, reader, reader_options) for p in recording_paths]

@@ -241,7 +241,11 @@ class Mapper:
         self.grounded_class = np.array([c in floor for c in smap.classes] + [False])
         priors = config["modeling"]["class_depth"] or {}
         self.depth_prior = np.array([float(priors.get(c, np.nan)) for c in smap.classes] + [np.nan])
-        self.nondet_vector = non_detection_vector(self.n_classes, config["maintenance"]["v_other"])
+        # v_Other of eq. 4 for an object of each class: a calibration may measure it per class (a
+        # detector that rarely finds tables says little by not finding one).
+        per_class = config["maintenance"]["v_other_per_class"] or {}
+        v = [float(per_class.get(c, config["maintenance"]["v_other"])) for c in smap.classes]
+        self.nondet_vectors = np.array([non_detection_vector(self.n_classes, vc) for vc in v])  # (C, C+1)
 
     # -- helpers -----------------------------------------------------------------------------
     def _weight(self, row: int) -> float:
@@ -420,7 +424,8 @@ class Mapper:
     def _non_detection(self, row, frame_index, frame_key) -> bool:
         """Fuse a non-detection into ``row`` (eqs. 3-4); remove it when `other` leads. True if removed."""
         t = self.map.objects
-        s = fuse_scores(self.nondet_vector, t.scores[row], self._weight(row))
+        top = int(self._top_class(t.scores[row]))
+        s = fuse_scores(self.nondet_vectors[top], t.scores[row], self._weight(row))
         t.cols["scores"][row] = s
         t.cols["n_nondet"][row] += 1
         self._log(frame_index, frame_key, "non-detection", row + 1)

@@ -139,3 +139,25 @@ def test_partial_views_of_one_object_end_as_one(containment):
     assert np.sort(t.size[active[0]])[-1] == pytest.approx(2.0, abs=0.05)
     merges = [e.kind for e in mapper.map.events].count("merged")
     assert (created, merges) == (([1, 1, 0], 1) if containment is None else ([1, 0, 0], 0))
+
+
+def test_per_class_v_other():
+    """v_Other 0.8 for chairs: by hand (D capped at 5, n_det 2) the chair's vector goes
+    [0.8, 0.1, 0.1] -> [0.567, 0.1, 0.333] -> [0.45, 0.1, 0.45] (a tie keeps the class) ->
+    [0.38, 0.1, 0.52]: removed at the 3rd non-detection. v_Other 0.2 for tables: eq. 4 gives
+    [0.4, 0.4, 0.2], whose `other` never leads, so a table is never removed however often missed."""
+    cfg = defaults()
+    cfg["maintenance"]["v_other_per_class"] = {"chair": 0.8, "table": 0.2}
+    mapper = make_mapper(cfg)
+    chair = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
+    table = add_object(mapper, [2.2, -1.0, 0.4], [0.4, 0.6, 0.8], [0.1, 0.8, 0.1], n_det=2)
+    depth, _ = render([], wall_x=4.0)
+    for k in range(1, 3):
+        empty_frame(mapper, depth, k)
+        assert mapper.map.objects.status[chair] == ACTIVE, k
+    empty_frame(mapper, depth, 3)
+    assert mapper.map.objects.status[chair] == REMOVED
+    for k in range(4, 30):
+        empty_frame(mapper, depth, k)
+    assert mapper.map.objects.status[table] == ACTIVE
+    assert mapper.map.objects.n_nondet[table] >= 20
