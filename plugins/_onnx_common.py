@@ -39,6 +39,15 @@ class Options:
     def fail(self, message: str, path=None):
         raise PluginError(f"{self.name}: {message}", path=path)
 
+    def merged(self, defaults: dict, given: dict | None) -> dict:
+        """The defaults updated with the given options; an unknown option is an error (a typo
+        would otherwise be ignored silently)."""
+        given = dict(given or {})
+        unknown = sorted(set(given) - set(defaults))
+        if unknown:
+            self.fail(f"unknown option(s) {', '.join(map(repr, unknown))} (known: {', '.join(defaults)})")
+        return {**defaults, **given}
+
     def number(self, opts: dict, key: str, lo: float, hi: float, lo_open=False, hi_open=False) -> float:
         v = opts[key]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):

@@ -24,8 +24,6 @@ size), ``max_size`` (1333).
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 from PIL import Image
@@ -131,17 +129,9 @@ class MaskRcnnDetector:
     thread_safe = True
 
     def __init__(self, model_path, options: dict | None = None):
-        opts = dict(DEFAULTS)
-        given = dict(options or {})
-        unknown = sorted(set(given) - set(DEFAULTS))
-        if unknown:
-            _fail(f"unknown option(s) {', '.join(map(repr, unknown))} (known: {', '.join(DEFAULTS)})")
-        opts.update(given)
-        if not model_path or not isinstance(model_path, (str, os.PathLike)):
-            _fail("option 'model' is required: the path to an ONNX file (no model is downloaded)")
-        self.model_path = Path(os.path.expanduser(str(model_path)))
-        if not self.model_path.is_file():
-            _fail("model file not found", path=self.model_path)
+        opts = _OPTIONS.merged(DEFAULTS, options)
+        opts["model"] = model_path
+        self.model_path = _model_path(opts)
         self.score_threshold = _number(opts, "score_threshold", 0.0, 1.0)
         self.mask_threshold = _number(opts, "mask_threshold", 0.0, 1.0, lo_open=True, hi_open=True)
         self.max_detections = _int(opts, "max_detections", 1)

@@ -164,12 +164,7 @@ class YoloSegDetector:
     thread_safe = True
 
     def __init__(self, model_path, options: dict | None = None):
-        opts = dict(DEFAULTS)
-        given = dict(options or {})
-        unknown = sorted(set(given) - set(DEFAULTS))
-        if unknown:
-            _fail(f"unknown option(s) {', '.join(map(repr, unknown))} (known: {', '.join(DEFAULTS)})")
-        opts.update(given)
+        opts = _OPTIONS.merged(DEFAULTS, options)
         opts["model"] = model_path
         self.model_path = _model_path(opts)
         self.score_threshold = _number(opts, "score_threshold", 0.0, 1.0)

@@ -57,6 +57,15 @@ AXES = {
 # Shared helpers
 
 
+def _open_folder(path, options, known, reader: str):
+    """(folder, checked options) of a recording about to be opened."""
+    folder = Path(path)
+    opts = _check_options(options, known, reader)
+    if not folder.is_dir():
+        raise RecordingError("recording folder does not exist", folder)
+    return folder, opts
+
+
 def _check_options(options: dict | None, allowed: Iterable[str], reader: str) -> dict:
     options = dict(options or {})
     unknown = sorted(set(options) - set(allowed))
@@ -351,10 +360,7 @@ class TumReader:
             return False
 
     def open(self, path, options: dict | None = None) -> Recording:
-        folder = Path(path)
-        opts = _check_options(options, self.OPTIONS, self.name)
-        if not folder.is_dir():
-            raise RecordingError("recording folder does not exist", folder)
+        folder, opts = _open_folder(path, options, self.OPTIONS, self.name)
         depth_scale = _positive_number(opts, "depth_scale", 5000.0, self.name)
         max_dt = _positive_number(opts, "max_time_diff", 0.02, self.name)
         max_gap = _positive_number(opts, "max_pose_gap", 0.1, self.name)
@@ -542,10 +548,7 @@ class SevenScenesReader:
             return False
 
     def open(self, path, options: dict | None = None) -> Recording:
-        folder = Path(path)
-        opts = _check_options(options, self.OPTIONS, self.name)
-        if not folder.is_dir():
-            raise RecordingError("recording folder does not exist", folder)
+        folder, opts = _open_folder(path, options, self.OPTIONS, self.name)
         stems = _seven_scenes_frames(folder)
         if not stems:
             seqs = _seq_folders(folder)
@@ -636,10 +639,7 @@ class ScanNetReader:
             return False
 
     def open(self, path, options: dict | None = None) -> Recording:
-        folder = Path(path)
-        opts = _check_options(options, self.OPTIONS, self.name)
-        if not folder.is_dir():
-            raise RecordingError("recording folder does not exist", folder)
+        folder, opts = _open_folder(path, options, self.OPTIONS, self.name)
         for d in ("color", "depth", "pose"):
             if not (folder / d).is_dir():
                 raise RecordingError(f"ScanNet export has no {d}/ folder", folder)
