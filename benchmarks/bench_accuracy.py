@@ -23,10 +23,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import numpy as np  # noqa: E402
 
 from ltc_cli.config import load_config  # noqa: E402
-from ltc_cli.groundtruth import evaluate_map, read_ground_truth  # noqa: E402
-from ltc_cli.ingest import ingest  # noqa: E402
-from ltc_cli.simulate import simulate  # noqa: E402
-from ltc_cli.store import load_map  # noqa: E402
+from ltc_cli.tools.evaluate import evaluate_map  # noqa: E402
+from ltc_cli.recordings.groundtruth import read_ground_truth  # noqa: E402
+from ltc_cli.ingest.session import ingest  # noqa: E402
+from ltc_cli.tools.simulate import simulate  # noqa: E402
+from ltc_cli.map.store import load_map  # noqa: E402
 
 CACHE = Path(__file__).resolve().parent / ".cache"
 COMBOS = [("vertex", "non-detection"), ("vertex", "static"), ("centroid", "non-detection"), ("centroid", "static")]
@@ -97,7 +98,7 @@ def main():
         for h in houses:
             cal = None
             if args.calibrate:  # as `ltc calibrate lap1` then `ltc ingest --calibration`
-                from ltc_cli.calibrate import calibrate
+                from ltc_cli.tools.calibrate import calibrate
 
                 cal = calibrate(h / "lap1", "recorded", {}).to_document()
             with tempfile.TemporaryDirectory() as tmp:

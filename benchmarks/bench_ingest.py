@@ -37,8 +37,9 @@ import numpy as np  # noqa: E402
 
 from ltc_cli import plugins  # noqa: E402
 from ltc_cli.config import defaults  # noqa: E402
-from ltc_cli.ingest import ingest, open_recording  # noqa: E402
-from ltc_cli.store import load_map  # noqa: E402
+from ltc_cli.ingest.session import ingest  # noqa: E402
+from ltc_cli.recordings.open import open_recording  # noqa: E402
+from ltc_cli.map.store import load_map  # noqa: E402
 
 SHARED = ROOT.parent / "shared"
 MODEL = SHARED / "models" / "yolov8n-seg_int8.onnx"

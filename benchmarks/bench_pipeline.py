@@ -24,7 +24,8 @@ import numpy as np  # noqa: E402
 
 from ltc_cli import plugins  # noqa: E402
 from ltc_cli.config import load_config  # noqa: E402
-from ltc_cli.mapping import ACTIVE, Mapper, SemanticMap  # noqa: E402
+from ltc_cli.map.model import ACTIVE, SemanticMap  # noqa: E402
+from ltc_cli.pipeline.mapper import Mapper  # noqa: E402
 from tests.scene import INTR, T_world_camera, render  # noqa: E402
 
 CLASSES = [f"class{i}" for i in range(20)]

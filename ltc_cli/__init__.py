@@ -2,6 +2,6 @@
 
 __version__ = "0.1.0"
 
-from .hookspecs import hookimpl  # noqa: E402  (plugins write @ltc_cli.hookimpl)
+from ltc_cli.hookspecs import hookimpl  # noqa: E402  (plugins write @ltc_cli.hookimpl)
 
 __all__ = ["hookimpl", "__version__"]

@@ -14,9 +14,9 @@ from collections import Counter
 import click
 import numpy as np
 
-from . import __version__, plugins
-from .config import load_config
-from .errors import LtcError
+from ltc_cli import __version__, plugins
+from ltc_cli.config import load_config
+from ltc_cli.errors import LtcError
 
 
 class LtcGroup(click.Group):
@@ -59,8 +59,8 @@ def _plural(n: int, word: str) -> str:
               help="Threads that load and detect the next frames while the current one is mapped (the map is the same as with 1).")
 def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict, reader, jobs):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
-    from .ingest import ingest as run_ingest
-    from .ingest import load_calibration
+    from ltc_cli.ingest.session import ingest as run_ingest
+    from ltc_cli.ingest.session import load_calibration
 
     cfg = load_config(config_file, sets)
     if detector:
@@ -83,7 +83,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
     try:
         progress = None
         if sys.stderr.isatty():
-            from .ingest import open_recording
+            from ltc_cli.recordings.open import open_recording
 
             total = sum(len(open_recording(r, reader)) for r in recordings)
             bar = click.progressbar(length=total, label="ingest", file=sys.stderr)
@@ -120,8 +120,8 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
 def info(map_path, fmt):
     """Summarise a map: classes, objects, sessions, frames."""
-    from .mapping import ACTIVE, MERGED, REMOVED
-    from .store import load_map
+    from ltc_cli.map.model import ACTIVE, MERGED, REMOVED
+    from ltc_cli.map.store import load_map
 
     smap = load_map(map_path)
     t = smap.objects
@@ -203,8 +203,8 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
     import csv
     import io
 
-    from . import query as q
-    from .store import load_map
+    from ltc_cli.map import query as q
+    from ltc_cli.map.store import load_map
 
     point = _floats(near, (2, 3), "X,Y or X,Y,Z", "--near") if near is not None else None
     if (point is None) != (radius is None):
@@ -238,8 +238,8 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
                    "bearing of the map's +y axis (degrees clockwise from true north; default 0).")
 def export_cmd(map_path, fmt, output, origin):
     """Export the active objects of MAP.h5 as JSON or GeoJSON (RFC 7946)."""
-    from . import export as ex
-    from .store import load_map
+    from ltc_cli.map import export as ex
+    from ltc_cli.map.store import load_map
 
     geo_origin = None
     if origin is not None:
@@ -273,8 +273,8 @@ def render_cmd(map_path, output, ground_truth, width, height, labels):
     """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a PNG."""
     from pathlib import Path
 
-    from .render import load_ground_truth, render_map
-    from .store import load_map
+    from ltc_cli.map.render import load_ground_truth, render_map
+    from ltc_cli.map.store import load_map
 
     smap = load_map(map_path)
     gt = load_ground_truth(ground_truth) if ground_truth else None
@@ -295,8 +295,8 @@ def render_cmd(map_path, output, ground_truth, width, height, labels):
               help="A simulator option, e.g. --set miss_rate=0.3 (see ltc_cli.simulate.DEFAULTS).")
 def simulate(outdir, scene, laps, seed, width, height, sets):
     """Write a synthetic house as ltc-recording/1 folders OUTDIR/lap1, lap2, ..."""
-    from .config import parse_set
-    from .simulate import simulate as run_simulate
+    from ltc_cli.config import parse_set
+    from ltc_cli.tools.simulate import simulate as run_simulate
 
     options = {}
     for item in sets:
@@ -319,8 +319,9 @@ def _fmt(v, spec=".3f"):
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
 def evaluate(map_path, gt_path, prev_path, max_distance, fmt):
     """Compare a map with ground-truth objects (precision, recall, F1, IoU, VIoU, ghosts)."""
-    from .groundtruth import evaluate_map, previous_lap, read_ground_truth
-    from .store import load_map
+    from ltc_cli.tools.evaluate import evaluate_map
+    from ltc_cli.recordings.groundtruth import previous_lap, read_ground_truth
+    from ltc_cli.map.store import load_map
 
     smap = load_map(map_path)
     gt = read_ground_truth(gt_path)
@@ -361,7 +362,7 @@ def evaluate(map_path, gt_path, prev_path, max_distance, fmt):
 @click.option("--table", is_flag=True, help="Print the per-class figures before the summary.")
 def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, table):
     """Measure a detector on RECORDING's ground-truth instance masks; write v_Other and the figures."""
-    from .calibrate import calibrate, write_calibration
+    from ltc_cli.tools.calibrate import calibrate, write_calibration
 
     cfg = load_config(config_file, sets)
     if detector:
@@ -370,7 +371,7 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
     try:
         progress = None
         if sys.stderr.isatty():
-            from .ingest import open_recording
+            from ltc_cli.recordings.open import open_recording
 
             bar = click.progressbar(length=len(open_recording(recording, reader)), label="calibrate", file=sys.stderr)
             bar.__enter__()

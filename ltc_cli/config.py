@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from .errors import ConfigError
+from ltc_cli.errors import ConfigError
 
 # Keys whose value is a free-form mapping (plugin options) or may be null.
 _FREE = {("detector", "options"), ("modeling", "class_depth"), ("maintenance", "v_other_per_class")}

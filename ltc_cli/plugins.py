@@ -9,8 +9,8 @@ from typing import Any, Callable
 
 import pluggy
 
-from . import hookspecs
-from .errors import PluginError
+from ltc_cli import hookspecs
+from ltc_cli.errors import PluginError
 
 KINDS = ("detectors", "metrics", "policies", "readers")
 

@@ -8,7 +8,7 @@ from importlib import resources
 
 import jsonschema
 
-from .errors import SchemaError
+from ltc_cli.errors import SchemaError
 
 
 @lru_cache(maxsize=None)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ltc_cli.errors import FrameError, PluginError
-from ltc_cli.images import load_rgb
+from ltc_cli.recordings.images import load_rgb
 from ltc_cli.types import Frame
 
 

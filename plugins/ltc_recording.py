@@ -10,8 +10,8 @@ import yaml
 
 from ltc_cli import hookimpl
 from ltc_cli.errors import FrameError, RecordingError
-from ltc_cli.geometry import is_rotation, pose_matrix
-from ltc_cli.images import load_depth, load_rgb
+from ltc_cli.geometry.camera import is_rotation, pose_matrix
+from ltc_cli.recordings.images import load_depth, load_rgb
 from ltc_cli.validation import validate
 from ltc_cli.types import Frame, FrameRef, Intrinsics, Recording
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ltc_cli import hookimpl
-from ltc_cli.association import centroid_distance, vertex_distance
+from ltc_cli.pipeline.association import centroid_distance, vertex_distance
 
 
 class VertexMetric:

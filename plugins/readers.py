@@ -34,8 +34,8 @@ from PIL import Image
 
 from ltc_cli import hookimpl
 from ltc_cli.errors import ConfigError, FrameError, RecordingError
-from ltc_cli.geometry import is_rotation, quat_to_rot
-from ltc_cli.images import load_depth, load_rgb
+from ltc_cli.geometry.camera import is_rotation, quat_to_rot
+from ltc_cli.recordings.images import load_depth, load_rgb
 from ltc_cli.types import Frame, FrameRef, Intrinsics, Recording
 
 # A quaternion further than this from unit norm is a corrupt pose, not rounding in a text file.

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from ltc_cli import hookimpl, rle
+from ltc_cli import hookimpl
+from ltc_cli.recordings import rle
 from ltc_cli.errors import FrameError, PluginError
 from ltc_cli.validation import validate
 from ltc_cli.types import Detection, Frame

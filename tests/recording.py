@@ -8,7 +8,7 @@ import yaml
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from ltc_cli import rle
+from ltc_cli.recordings import rle
 from tests.scene import INTR, T_world_camera, render
 
 CLASSES = ["chair", "table", "tv"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ltc_cli.mapping import ACTIVE, MERGED, REMOVED, Event, ObjectTable, SemanticMap
+from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, ObjectTable, SemanticMap
 
 SESSION = {"started": "2026-01-01T10:00:00+00:00", "finished": "2026-01-01T10:05:00+00:00",
            "status": "complete", "sources": '["/data/lap1"]', "recordings": '["lap1"]', "readers": '["ltc-recording"]',

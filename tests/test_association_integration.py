@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from ltc_cli.association import centroid_distance, nearest_under_threshold, thresholds_for, vertex_distance
-from ltc_cli.geometry import SHIFTS, Boxes, box_corners
-from ltc_cli.integration import Box, fuse_scores, integrate_box, non_detection_vector
+from ltc_cli.pipeline.association import centroid_distance, nearest_under_threshold, thresholds_for, vertex_distance
+from ltc_cli.geometry.boxes import SHIFTS, Boxes, box_corners
+from ltc_cli.pipeline.integration import Box, fuse_scores, integrate_box, non_detection_vector
 
 
 def boxes(center, yaw, size, visible=None):
@@ -109,7 +109,7 @@ def test_integration_both_partial_encloses_and_erodes():
     new = integrate_box(det, obj, 1, 1, erosion=0.01, min_extent=0.05)
     # Enclosing box: x in [-0.5, 1.0] -> 1.5 - 2 * 0.01; y and z stay at 1 (never below the inputs).
     np.testing.assert_allclose(new.center, [0.25, 0, 0.5], atol=1e-12)
-    from ltc_cli.geometry import align_yaw
+    from ltc_cli.geometry.boxes import align_yaw
 
     _, size = align_yaw(0.0, new.yaw, new.size)
     np.testing.assert_allclose(size, [1.48, 1.0, 1.0], atol=1e-12)

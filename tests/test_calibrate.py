@@ -11,12 +11,12 @@ import yaml
 from click.testing import CliRunner
 from PIL import Image
 
-import ltc_cli.simulate as sim
-from ltc_cli import rle
-from ltc_cli.calibrate import calibrate, match_frame, scaled_min_pixels, write_calibration
+import ltc_cli.tools.simulate as sim
+from ltc_cli.recordings import rle
+from ltc_cli.tools.calibrate import calibrate, match_frame, scaled_min_pixels, write_calibration
 from ltc_cli.cli import cli
-from ltc_cli.ingest import load_calibration
-from ltc_cli.store import load_map
+from ltc_cli.ingest.session import load_calibration
+from ltc_cli.map.store import load_map
 from ltc_cli.validation import validate
 
 

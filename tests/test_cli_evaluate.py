@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from ltc_cli.cli import cli
-from ltc_cli.groundtruth import read_ground_truth
+from ltc_cli.recordings.groundtruth import read_ground_truth
 
 
 def run(*args):

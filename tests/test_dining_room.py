@@ -11,8 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from ltc_cli.cli import cli
-from ltc_cli.mapping import ACTIVE
-from ltc_cli.store import load_map
+from ltc_cli.map.model import ACTIVE
+from ltc_cli.map.store import load_map
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 DATA = SHARED / "data" / "dining-room"

@@ -7,15 +7,9 @@ import pytest
 from shapely.geometry import Polygon
 
 from ltc_cli.errors import LtcError
-from ltc_cli.evaluation import (
-    convex_intersection_area,
-    evaluate,
-    pairwise_ious,
-    pairwise_ious_arrays,
-    volume_iou,
-    xy_iou,
-)
-from ltc_cli.geometry import box_corners
+from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
+from ltc_cli.tools.evaluate import evaluate, pairwise_ious, volume_iou, xy_iou
+from ltc_cli.geometry.boxes import box_corners
 
 
 def _shapely_ious(a, b):
@@ -105,7 +99,7 @@ def test_pairwise_matches_single_and_is_fast():
             assert xy[i, j] == pytest.approx(ref_xy, abs=1e-9)
             assert vol[i, j] == pytest.approx(ref_v, abs=1e-9)
     # geometry.Boxes (arrays) give the same matrix.
-    from ltc_cli.geometry import Boxes
+    from ltc_cli.geometry.boxes import Boxes
 
     arr = Boxes(
         np.array([b[0] for b in boxes_a]), np.array([b[1] for b in boxes_a]),

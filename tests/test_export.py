@@ -11,11 +11,11 @@ import pytest
 from click.testing import CliRunner
 from shapely.geometry import Polygon, shape
 
-from ltc_cli import export as ex
+from ltc_cli.map import export as ex
 from ltc_cli.cli import cli
-from ltc_cli.geometry import box_corners
-from ltc_cli.mapping import SemanticMap
-from ltc_cli.store import save_map
+from ltc_cli.geometry.boxes import box_corners
+from ltc_cli.map.model import SemanticMap
+from ltc_cli.map.store import save_map
 from ltc_cli.validation import validate
 from tests.sample_maps import add, big_map, hand_map
 

@@ -1,10 +1,8 @@
 import numpy as np
 import pytest
 
-from ltc_cli.geometry import (
-    Boxes, align_yaw, backproject, box_corners, fit_box, is_rotation, min_area_rect, pose_matrix,
-    quat_to_rot, rotation_between, wrap_yaw,
-)
+from ltc_cli.geometry.boxes import Boxes, align_yaw, box_corners, fit_box, min_area_rect, wrap_yaw
+from ltc_cli.geometry.camera import backproject, is_rotation, pose_matrix, quat_to_rot, rotation_between
 from ltc_cli.types import Intrinsics
 
 INTR = Intrinsics(640, 480, 500.0, 400.0, 320.0, 240.0)

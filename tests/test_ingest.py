@@ -12,8 +12,8 @@ import pytest
 from click.testing import CliRunner
 
 from ltc_cli.cli import cli
-from ltc_cli.mapping import ACTIVE
-from ltc_cli.store import MapLock, load_map
+from ltc_cli.map.model import ACTIVE
+from ltc_cli.map.store import MapLock, load_map
 from tests.recording import CLASSES, OBJECTS, write_recording
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -9,13 +9,13 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-import ltc_cli.simulate as sim
+import ltc_cli.tools.simulate as sim
 from ltc_cli import hookimpl, plugins
 from ltc_cli.cli import cli
 from ltc_cli.config import defaults
 from ltc_cli.errors import ConfigError
-from ltc_cli.ingest import ingest
-from ltc_cli.store import load_map
+from ltc_cli.ingest.session import ingest
+from ltc_cli.map.store import load_map
 from ltc_plugins.recorded import RecordedDetector
 
 

@@ -3,9 +3,11 @@ import pytest
 
 from ltc_cli import plugins
 from ltc_cli.config import defaults
-from ltc_cli.geometry import Boxes, invert_pose
-from ltc_cli.maintenance import in_view, visible_pixels
-from ltc_cli.mapping import ACTIVE, REMOVED, Mapper, SemanticMap
+from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.geometry.camera import invert_pose
+from ltc_cli.pipeline.maintenance import in_view, visible_pixels
+from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
+from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
 
 CLASSES = ["chair", "table"]

@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 
 from ltc_cli.config import defaults
-from ltc_cli.geometry import align_yaw, box_corners, invert_pose
-from ltc_cli.modeling import (
-    dbscan_labels, defined_flags, largest_clusters, model_detections, thin_mask, vertex_visibility,
-)
+from ltc_cli.geometry.boxes import align_yaw, box_corners
+from ltc_cli.geometry.camera import invert_pose
+from ltc_cli.pipeline.clustering import dbscan_labels, largest_clusters
+from ltc_cli.pipeline.modeling import defined_flags, model_detections, thin_mask, vertex_visibility
 from tests.scene import INTR, T_world_camera, face_rect, render
 
 

@@ -216,7 +216,7 @@ def test_real_yolov8n_seg_on_dining_room():
     """The shipped int8 YOLOv8n-seg finds the dining room's furniture with masks of sane size."""
     if not REAL_MODEL.is_file() or not DINING_RGB.is_file():
         pytest.skip("../shared/models/yolov8n-seg_int8.onnx or the dining-room frames are absent")
-    from ltc_cli.images import load_rgb
+    from ltc_cli.recordings.images import load_rgb
 
     det = YoloSegDetector.from_options(None, {"model": str(REAL_MODEL), "threads": 1})
     assert len(det.classes) == 80 and det.input_hw == (320, 320)

@@ -9,9 +9,10 @@ from ltc_cli import hookimpl, plugins
 from ltc_cli.cli import cli
 from ltc_cli.config import defaults
 from ltc_cli.errors import PluginError
-from ltc_cli.ingest import ingest, open_recording
-from ltc_cli.mapping import ACTIVE
-from ltc_cli.store import load_map
+from ltc_cli.ingest.session import ingest
+from ltc_cli.recordings.open import open_recording
+from ltc_cli.map.model import ACTIVE
+from ltc_cli.map.store import load_map
 from ltc_plugins.ltc_recording import LtcRecordingReader
 from tests.recording import write_recording
 

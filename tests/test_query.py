@@ -11,9 +11,9 @@ import pytest
 from click.testing import CliRunner
 
 from ltc_cli.cli import cli
-from ltc_cli.mapping import ACTIVE
-from ltc_cli.query import Query, QueryError, classify, records, select
-from ltc_cli.store import load_map, save_map
+from ltc_cli.map.model import ACTIVE
+from ltc_cli.map.query import Query, QueryError, classify, records, select
+from ltc_cli.map.store import load_map, save_map
 from tests.sample_maps import big_map, hand_map
 
 
@@ -52,7 +52,7 @@ def test_class_filter_one_and_several(smap):
 def test_class_is_the_argmax_without_other():
     """An object whose `other` score is the largest still has a class: the best of the rest."""
     from tests.sample_maps import add
-    from ltc_cli.mapping import SemanticMap
+    from ltc_cli.map.model import SemanticMap
 
     m = SemanticMap.new(["a", "b"])
     add(m, [0, 0, 0], 0.0, [1, 1, 1], "a", 0.5)

@@ -13,7 +13,8 @@ import pytest
 from PIL import Image
 
 from ltc_cli.errors import ConfigError, FrameError, RecordingError
-from ltc_cli.geometry import pose_matrix, rot_z
+from ltc_cli.geometry.camera import pose_matrix
+from ltc_cli.geometry.boxes import rot_z
 from ltc_plugins import readers
 from ltc_plugins.readers import ScanNetReader, SevenScenesReader, TumReader
 

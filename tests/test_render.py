@@ -10,9 +10,9 @@ from PIL import Image
 
 from ltc_cli.cli import cli
 from ltc_cli.errors import LtcError
-from ltc_cli.geometry import box_corners
-from ltc_cli.render import FILL_ALPHA, PALETTE, class_colour, load_ground_truth, render_map
-from ltc_cli.store import save_map
+from ltc_cli.geometry.boxes import box_corners
+from ltc_cli.map.render import FILL_ALPHA, PALETTE, class_colour, load_ground_truth, render_map
+from ltc_cli.map.store import save_map
 from tests.sample_maps import house_map
 
 
@@ -79,7 +79,7 @@ def test_objects_are_drawn_where_they_are_in_their_class_colour(house, tmp_path)
 
 def test_bounds_and_pixel_transform(tmp_path):
     """With known bounds, a footprint's pixels are where the affine transform says."""
-    from ltc_cli.mapping import SemanticMap
+    from ltc_cli.map.model import SemanticMap
     from tests.sample_maps import add
 
     m = SemanticMap.new(["chair", "table"])
@@ -124,7 +124,7 @@ def test_ground_truth_is_drawn_beneath_as_grey_outlines(house, tmp_path):
 
 
 def test_empty_map_still_renders(tmp_path):
-    from ltc_cli.mapping import SemanticMap
+    from ltc_cli.map.model import SemanticMap
 
     res = render_map(SemanticMap.new(["chair"]), tmp_path / "e.png", width=300, height=200)
     assert Image.open(res.path).size == (300, 200) and res.objects == 0

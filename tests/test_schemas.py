@@ -98,7 +98,7 @@ def test_malformed_input_names_the_file_and_the_path(name, doc, path, value, whe
 # -- the same through the readers that load these files ------------------------------------------
 
 def test_reader_refuses_a_bad_recording_yaml(tmp_path):
-    from ltc_cli.ingest import open_recording
+    from ltc_cli.recordings.open import open_recording
 
     rec = tmp_path / "rec"
     rec.mkdir()
@@ -110,7 +110,7 @@ def test_reader_refuses_a_bad_recording_yaml(tmp_path):
 
 
 def test_calibration_loader_refuses_a_bad_file(tmp_path):
-    from ltc_cli.ingest import load_calibration
+    from ltc_cli.ingest.session import load_calibration
 
     p = tmp_path / "calibration.yaml"
     p.write_text(CALIBRATION.replace("v_other: 0.42", "v_other: 1.2"))
@@ -120,7 +120,7 @@ def test_calibration_loader_refuses_a_bad_file(tmp_path):
 
 
 def test_ground_truth_loader_refuses_a_bad_file(tmp_path):
-    from ltc_cli.render import load_ground_truth
+    from ltc_cli.map.render import load_ground_truth
 
     p = tmp_path / "ground_truth.json"
     p.write_text(json.dumps(edit(GROUND_TRUTH, ["objects", 1, "class"], 7)))
@@ -137,7 +137,7 @@ def test_recorded_detector_skips_a_bad_detections_file(tmp_path):
     and the path inside it."""
     from ltc_cli import plugins
     from ltc_cli.errors import FrameError
-    from ltc_cli.ingest import open_recording
+    from ltc_cli.recordings.open import open_recording
     from tests.recording import write_recording
 
     rec = write_recording(tmp_path / "rec", cam_ys=(0.0,))

@@ -11,10 +11,10 @@ import pytest
 import yaml
 from PIL import Image
 
-from ltc_cli import rle
+from ltc_cli.recordings import rle
 from ltc_cli.errors import LtcError
-from ltc_cli.geometry import pose_matrix
-from ltc_cli.simulate import CLASSES, _House, _path, simulate
+from ltc_cli.geometry.camera import pose_matrix
+from ltc_cli.tools.simulate import CLASSES, _House, _path, simulate
 
 SCHEMAS = Path(__file__).resolve().parents[1] / "schemas"
 W, H = 160, 120
@@ -294,7 +294,7 @@ def test_scenes_keep_the_path_clear(scene, rooms):
 def test_last_lap_map_shows_ghosts_of_the_changes(noisy):
     """Lap 1's ground truth used as a stale map of lap 2: the moved and removed objects are
     ghosts, everything else matches exactly (the two modules agree on box conventions)."""
-    from ltc_cli.evaluation import evaluate
+    from ltc_cli.tools.evaluate import evaluate
 
     out, _ = noisy
     g1, g2 = _gt(out / "lap1"), _gt(out / "lap2")

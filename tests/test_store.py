@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ltc_cli.errors import MapFormatError, MapLockedError
-from ltc_cli.mapping import ACTIVE, Event, SemanticMap
-from ltc_cli.store import MapLock, load_map, save_map
+from ltc_cli.map.model import ACTIVE, Event, SemanticMap
+from ltc_cli.map.store import MapLock, load_map, save_map
 
 
 def small_map():

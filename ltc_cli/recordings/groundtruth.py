@@ -5,12 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-
-from .errors import RecordingError
-from .evaluation import evaluate
-from .mapping import SemanticMap
-from .validation import validate
+from ltc_cli.errors import RecordingError
+from ltc_cli.validation import validate
 
 
 def read_ground_truth(path) -> dict:
@@ -45,24 +41,3 @@ def previous_lap(path) -> dict | None:
     return None
 
 
-def map_objects(smap: SemanticMap) -> list[dict]:
-    """The active objects of a map as {id, class, center, yaw, size} (class = top non-other score)."""
-    t = smap.objects
-    rows = smap.active_rows()
-    top = t.scores[rows, :-1].argmax(axis=1) if len(rows) else np.zeros(0, int)
-    return [
-        {"id": int(r + 1), "class": smap.classes[int(c)], "center": t.center[r], "yaw": float(t.yaw[r]),
-         "size": t.size[r]}
-        for r, c in zip(rows, top)
-    ]
-
-
-def evaluate_map(smap: SemanticMap, gt: dict, previous: dict | None = None, **kw) -> dict:
-    """Metrics of DESIGN.md section 8 for a map, with recall over all ground-truth objects and
-    over those the robot saw (``recall_seen``)."""
-    objs = map_objects(smap)
-    res = evaluate(objs, gt, previous_gt=previous, **kw)
-    seen = evaluate(objs, gt, previous_gt=previous, seen_only=True, **kw)
-    res["recall_seen"] = seen["recall"]
-    res["f1_seen"] = seen["f1"]
-    return res

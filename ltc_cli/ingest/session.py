@@ -18,9 +18,7 @@ once); loading frames always runs in parallel.
 from __future__ import annotations
 
 import json
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -29,14 +27,16 @@ from typing import Callable
 import numpy as np
 import yaml
 
-from . import __version__, plugins
-from .errors import ConfigError, FrameError, LtcError, RecordingError
-from .geometry import backproject, rotation_between, transform
-from .modeling import estimate_floor_z
-from .mapping import ClassMapper, Mapper, SemanticMap
-from .validation import validate
-from .store import MapLock, load_map, save_map
-from .types import Recording
+from ltc_cli import __version__, plugins
+from ltc_cli.errors import ConfigError, FrameError, LtcError
+from ltc_cli.ingest.frame_setup import frame_setup_for
+from ltc_cli.ingest.prefetch import Prefetch, load_and_detect
+from ltc_cli.pipeline.classes import ClassMapper
+from ltc_cli.pipeline.mapper import Mapper
+from ltc_cli.map.model import SemanticMap
+from ltc_cli.validation import validate
+from ltc_cli.map.store import MapLock, load_map, save_map
+from ltc_cli.recordings.open import open_recording
 
 
 @dataclass
@@ -63,20 +63,6 @@ def now_iso() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def open_recording(path, reader: str | None = None, options: dict | None = None) -> Recording:
-    """Open a recording with the named reader, or the first installed reader that recognises it."""
-    p = Path(path)
-    if not p.exists():
-        raise RecordingError("recording does not exist", p)
-    if reader:
-        return plugins.get("readers", reader).factory.open(p, options or {})
-    for name, reg in sorted(plugins.registry("readers").items()):
-        if reg.factory.sniff(p):
-            return reg.factory.open(p, options or {})
-    known = ", ".join(sorted(plugins.registry("readers")))
-    raise RecordingError(f"no reader recognises this folder (installed readers: {known})", p)
-
-
 def load_calibration(path) -> dict:
     p = Path(path)
     try:
@@ -87,49 +73,6 @@ def load_calibration(path) -> dict:
         raise ConfigError("calibration is not valid YAML", p) from None
     validate(doc, "calibration", p)
     return doc
-
-
-def _sample_frames(rec: Recording, n: int) -> list:
-    """Up to n readable frames spread over the recording."""
-    step = max(1, len(rec.frames) // n)
-    out = []
-    for ref in rec.frames[::step][:n]:
-        try:
-            out.append(ref.load())
-        except FrameError:
-            continue
-    return out
-
-
-def frame_setup_for(rec: Recording, sample_frames: int = 5):
-    """(R_up (3, 3), floor_z or None) of a recording.
-
-    R_up turns the recording's world into the z-up map frame (given, or estimated from the
-    cameras and the floor when ``up: estimate``); floor_z is the floor's height in the map frame,
-    from the depth of a few frames (None when no floor is in view).
-    """
-    frames = _sample_frames(rec, sample_frames)
-    if rec.up is None:
-        R_up = np.eye(3)
-    elif isinstance(rec.up, str) and rec.up == "estimate":
-        from . import upaxis
-
-        if not frames:
-            raise RecordingError("cannot estimate the up axis: no readable frame", rec.path)
-        up = upaxis.estimate_up(np.array([f.T_world_camera for f in frames]),
-                                [(f.depth_m, f.T_world_camera) for f in frames], rec.intrinsics)
-        R_up = rotation_between(up, [0.0, 0.0, 1.0])
-    else:
-        R_up = rotation_between(np.asarray(rec.up, dtype=np.float64), [0.0, 0.0, 1.0])
-    zs = []
-    for f in frames:
-        v, u = np.mgrid[4 : f.depth_m.shape[0] : 8, 4 : f.depth_m.shape[1] : 8]
-        z = f.depth_m[v, u]
-        ok = z > 0
-        pts = backproject(u[ok], v[ok], z[ok], f.intrinsics)
-        zs.append(transform(f.T_world_camera, pts) @ R_up[2])
-    floor_z = estimate_floor_z(np.concatenate(zs)) if zs else None
-    return R_up, floor_z
 
 
 def ingest(
@@ -226,69 +169,6 @@ def _session_row(smap, config, recordings, ups, floors, calibration) -> tuple[in
     return len(smap.sessions) - 1, row
 
 
-def _load_and_detect(det, lock=None):
-    """fetch(ref) -> (frame, detections, t0, t1, t2): load the frame (t0 -> t1), then detect (t1 ->
-    t2); FrameError propagates. With a lock, ``detect`` runs under it and the wait is not timed."""
-
-    def fetch(ref):
-        t0 = time.perf_counter()
-        frame = ref.load()
-        t1 = time.perf_counter()
-        if lock is None:
-            dets = det.detect(frame)
-            return frame, dets, t0, t1, time.perf_counter()
-        with lock:
-            td = time.perf_counter()
-            dets = det.detect(frame)
-            t2 = time.perf_counter()
-        return frame, dets, t0, t1, t1 + (t2 - td)
-
-    return fetch
-
-
-class _Prefetch:
-    """Loads and detects the frames of one recording ahead of the mapper in a thread pool.
-
-    ``take(ref)`` returns what ``_load_and_detect`` returns for ``ref`` (or raises what it raised),
-    for refs asked in recording order; frames whose key is in ``done`` when they come into the
-    look-ahead window are never loaded. Everything is submitted from the calling thread, so ``done``
-    (the map's frame keys) is only read there.
-    """
-
-    def __init__(self, refs, keys, done, det, jobs: int, lookahead: int | None = None):
-        self.refs = list(refs)
-        self.keys = list(keys)
-        self.done = done
-        self.position = {id(r): i for i, r in enumerate(self.refs)}
-        lock = None if getattr(det, "thread_safe", False) else threading.Lock()
-        self.fetch = _load_and_detect(det, lock)
-        self.lookahead = max(1, lookahead or 2 * jobs)
-        self.pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="ltc-detect")
-        self.pending: dict = {}  # position -> Future
-        self.next = 0  # the next position to consider for submission
-
-    def take(self, ref):
-        i = self.position[id(ref)]
-        for j in [j for j in self.pending if j < i]:  # frames the caller skipped after all
-            self.pending.pop(j).cancel()
-        while self.next < len(self.refs) and (self.next <= i or len(self.pending) < self.lookahead):
-            j = self.next
-            self.next += 1
-            if self.keys[j] not in self.done:
-                self.pending[j] = self.pool.submit(self.fetch, self.refs[j])
-        fut = self.pending.pop(i, None)
-        if fut is None:  # not submitted (its key was already in the map then): do it here
-            return self.fetch(ref)
-        return fut.result()
-
-    def close(self) -> None:
-        """Cancel the work not started, wait for the frames in flight, drop every result."""
-        for fut in self.pending.values():
-            fut.cancel()
-        self.pending.clear()
-        self.pool.shutdown(wait=True, cancel_futures=True)
-
-
 def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, policy, calibration,
          checkpoint_every, strict, progress, warn, should_stop, on_frame, jobs=1) -> IngestSummary:
     session, row = _session_row(smap, config, recordings, ups, floors, calibration)
@@ -297,7 +177,7 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
     stage = {k: 0.0 for k in ("load", "detect", "modeling", "association", "integration", "maintenance", "merge")}
     since_commit = 0
     error: BaseException | None = None
-    ahead: _Prefetch | None = None
+    ahead: Prefetch | None = None
     try:
         for rec, det, R_up, floor_z in zip(recordings, detectors, ups, floors):
             mapper_classes = ClassMapper(det.classes, smap.classes)
@@ -307,9 +187,9 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
             depth_range = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
             depth_range = (max(depth_range[0], m_cfg["min_depth"]), min(depth_range[1], m_cfg["max_depth"]))
             if jobs > 1:
-                ahead = _Prefetch(rec.frames, [f"{rec.identity}/{r.key}" for r in rec.frames],
+                ahead = Prefetch(rec.frames, [f"{rec.identity}/{r.key}" for r in rec.frames],
                                   smap.frame_keys, det, jobs)
-            fetch = ahead.take if ahead is not None else _load_and_detect(det)
+            fetch = ahead.take if ahead is not None else load_and_detect(det)
             for ref in rec.frames:
                 if should_stop():
                     summary.interrupted = True

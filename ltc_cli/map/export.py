@@ -34,12 +34,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .fileio import write_text_atomic
-from .errors import LtcError
-from .geometry import box_corners
-from .mapping import SemanticMap
-from .query import classify, paused_gc
+from ltc_cli import __version__
+from ltc_cli.fileio import write_text_atomic
+from ltc_cli.errors import LtcError
+from ltc_cli.geometry.boxes import box_corners
+from ltc_cli.map.model import SemanticMap
+from ltc_cli.map.query import classify, paused_gc
 
 JSON_FORMAT = "ltc-map-export/1"
 GEOJSON_FORMAT = "ltc-geojson/1"

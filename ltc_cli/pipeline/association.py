@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import SHIFTS, Boxes
+from ltc_cli.geometry.boxes import SHIFTS, Boxes
 
 
 def vertex_distance(det: Boxes, cands: Boxes, min_visible_pairs: int = 3):
@@ -70,7 +70,7 @@ def containment(det: Boxes, cands: Boxes) -> np.ndarray:
     Exact for Z-oriented boxes: footprint polygon intersection times the z overlap, over the
     detection's volume.
     """
-    from .evaluation import convex_intersection_area  # the exact polygon clipper
+    from ltc_cli.geometry.polygons import convex_intersection_area  # the exact polygon clipper
 
     m = len(cands)
     if m == 0:
@@ -87,7 +87,7 @@ def containment(det: Boxes, cands: Boxes) -> np.ndarray:
 
 def pairwise_containment(boxes: Boxes) -> np.ndarray:
     """(M, M) matrix whose [i, j] is the fraction of box i's volume inside box j (diagonal 1)."""
-    from .evaluation import convex_intersection_area
+    from ltc_cli.geometry.polygons import convex_intersection_area
 
     m = len(boxes)
     out = np.eye(m)

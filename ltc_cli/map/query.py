@@ -19,8 +19,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import LtcError
-from .mapping import ACTIVE, REMOVED, SemanticMap
+from ltc_cli.errors import LtcError
+from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
 
 
 @contextmanager

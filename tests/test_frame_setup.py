@@ -1,4 +1,4 @@
-"""Up-axis estimation (ltc_cli.upaxis): synthetic worlds that are not z-up, and the real dining room."""
+"""Up-axis estimation (ltc_cli.ingest.frame_setup): synthetic worlds that are not z-up, and the real dining room."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ltc_cli.geometry import is_rotation, pose_matrix
+from ltc_cli.geometry.camera import is_rotation, pose_matrix
 from ltc_cli.types import Intrinsics
-from ltc_cli.upaxis import cameras_up, estimate_up, estimate_up_from_frames, up_rotation
+from ltc_cli.ingest.frame_setup import cameras_up, estimate_up, estimate_up_from_frames, up_rotation
 
 DINING = Path(__file__).resolve().parents[2] / "shared" / "data" / "dining-room"
 INTR = Intrinsics(width=80, height=60, fx=60.0, fy=60.0, cx=39.5, cy=29.5)
@@ -177,7 +177,7 @@ def test_dining_room_up():
     """The real dining room (README: up about (-0.08, -0.95, -0.30), not z-up)."""
     if not (DINING / "pose.txt").is_file():
         pytest.skip(f"{DINING} is absent")
-    from ltc_cli.images import load_depth
+    from ltc_cli.recordings.images import load_depth
 
     rows = np.loadtxt(DINING / "pose.txt")
     poses = np.stack([pose_matrix(r[:3], r[3:]) for r in rows])

@@ -49,9 +49,9 @@ import yaml
 from PIL import Image
 from scipy import ndimage
 
-from . import rle
-from .errors import ConfigError, LtcError
-from .geometry import EDGES_BY_AXIS, box_corners, wrap_yaw
+from ltc_cli.recordings import rle
+from ltc_cli.errors import ConfigError, LtcError
+from ltc_cli.geometry.boxes import EDGES_BY_AXIS, box_corners, wrap_yaw
 
 # ---------------------------------------------------------------------------------------------
 # Vocabulary, colours, options

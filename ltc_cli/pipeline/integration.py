@@ -5,13 +5,11 @@ Pure numpy. Section 3.3 of the paper; DESIGN.md 1.3.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .association import vertex_distance
-from .geometry import SHIFTS, Boxes, align_yaw, box_corners, min_area_rect, wrap_yaw
-from .modeling import defined_flags
+from ltc_cli.pipeline.association import vertex_distance
+from ltc_cli.geometry.boxes import SHIFTS, Box, align_yaw, box_corners, min_area_rect, wrap_yaw
+from ltc_cli.pipeline.modeling import defined_flags
 
 
 def fuse_scores(s_i: np.ndarray, s_j: np.ndarray, D: float) -> np.ndarray:
@@ -29,20 +27,6 @@ def non_detection_vector(n_classes: int, v_other: float) -> np.ndarray:
     v = np.full(n_classes + 1, (1.0 - v_other) / n_classes)
     v[-1] = v_other
     return v
-
-
-@dataclass
-class Box:
-    """One Z-oriented box: center (3,), yaw, size (3,), visible (8,) bool, defined."""
-
-    center: np.ndarray
-    yaw: float
-    size: np.ndarray
-    visible: np.ndarray
-    defined: bool
-
-    def as_boxes(self) -> Boxes:
-        return Boxes(self.center[None], np.array([self.yaw]), self.size[None], self.visible[None])
 
 
 def _corresponding_visible(src: Box, dst: Box) -> np.ndarray:

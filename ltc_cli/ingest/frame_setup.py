@@ -18,7 +18,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .geometry import rotation_between
+from ltc_cli.errors import FrameError, RecordingError
+from ltc_cli.geometry.camera import backproject, rotation_between, transform
+from ltc_cli.types import Recording
 
 # Planes whose normal is further than this from the cameras' guess are walls or slopes, never floor.
 MAX_TILT_FROM_GUESS_DEG = 30.0
@@ -217,3 +219,61 @@ def up_rotation(up) -> np.ndarray:
 
 
 __all__ = ["estimate_up", "estimate_up_from_frames", "cameras_up", "up_rotation"]
+
+
+def estimate_floor_z(points_z: np.ndarray, band: float = 0.05, min_share: float = 0.03):
+    """Height of the floor (map frame, z up) from the z (N,) of depth points of a few frames, or None.
+
+    The floor is the lowest large horizontal surface: start from the 2nd percentile (below it lie
+    only noise and reflections) and take the median of the points within ``band`` of it. When fewer
+    than ``min_share`` of the points lie there, the floor was not in view: None.
+    """
+    z = np.asarray(points_z, dtype=np.float64)
+    if z.size < 100:
+        return None
+    guess = float(np.percentile(z, 2))
+    near = np.abs(z - guess) < band
+    if near.mean() < min_share:
+        return None
+    return float(np.median(z[near]))
+
+
+def _sample_frames(rec: Recording, n: int) -> list:
+    """Up to n readable frames spread over the recording."""
+    step = max(1, len(rec.frames) // n)
+    out = []
+    for ref in rec.frames[::step][:n]:
+        try:
+            out.append(ref.load())
+        except FrameError:
+            continue
+    return out
+
+
+def frame_setup_for(rec: Recording, sample_frames: int = 5):
+    """(R_up (3, 3), floor_z or None) of a recording.
+
+    R_up turns the recording's world into the z-up map frame (given, or estimated from the
+    cameras and the floor when ``up: estimate``); floor_z is the floor's height in the map frame,
+    from the depth of a few frames (None when no floor is in view).
+    """
+    frames = _sample_frames(rec, sample_frames)
+    if rec.up is None:
+        R_up = np.eye(3)
+    elif isinstance(rec.up, str) and rec.up == "estimate":
+        if not frames:
+            raise RecordingError("cannot estimate the up axis: no readable frame", rec.path)
+        up = estimate_up(np.array([f.T_world_camera for f in frames]),
+                                [(f.depth_m, f.T_world_camera) for f in frames], rec.intrinsics)
+        R_up = rotation_between(up, [0.0, 0.0, 1.0])
+    else:
+        R_up = rotation_between(np.asarray(rec.up, dtype=np.float64), [0.0, 0.0, 1.0])
+    zs = []
+    for f in frames:
+        v, u = np.mgrid[4 : f.depth_m.shape[0] : 8, 4 : f.depth_m.shape[1] : 8]
+        z = f.depth_m[v, u]
+        ok = z > 0
+        pts = backproject(u[ok], v[ok], z[ok], f.intrinsics)
+        zs.append(transform(f.T_world_camera, pts) @ R_up[2])
+    floor_z = estimate_floor_z(np.concatenate(zs)) if zs else None
+    return R_up, floor_z

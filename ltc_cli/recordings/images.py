@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from .errors import FrameError
+from ltc_cli.errors import FrameError
 
 
 def _open(path: Path) -> Image.Image:

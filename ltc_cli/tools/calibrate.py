@@ -82,10 +82,10 @@ import numpy as np
 import yaml
 from PIL import Image
 
-from . import __version__, plugins
-from .fileio import write_text_atomic
-from .errors import FrameError, LtcError, RecordingError
-from .validation import validate
+from ltc_cli import __version__, plugins
+from ltc_cli.fileio import write_text_atomic
+from ltc_cli.errors import FrameError, LtcError, RecordingError
+from ltc_cli.validation import validate
 
 FORMAT = "ltc-calibration/1"
 V_OTHER_MIN, V_OTHER_MAX = 0.05, 0.95
@@ -370,8 +370,8 @@ def calibrate(
     Raises RecordingError when the recording has no annotations/ folder or no ground_truth.json,
     CalibrationError when no frame could be evaluated or no instance counts.
     """
-    from .groundtruth import read_ground_truth
-    from .ingest import open_recording
+    from ltc_cli.recordings.groundtruth import read_ground_truth
+    from ltc_cli.recordings.open import open_recording
 
     warn = warn or (lambda msg: None)
     if not 0.0 < float(iou_threshold) <= 1.0:

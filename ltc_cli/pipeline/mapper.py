@@ -7,179 +7,19 @@ No I/O here: the map store (store.py) saves and loads :class:`SemanticMap`; the 
 from __future__ import annotations
 
 import time
-from collections import defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .association import containment, nearest_under_threshold, pairwise_containment, thresholds_for
-from .geometry import Boxes, invert_pose
-from .integration import Box, fuse_scores, integrate_box, non_detection_vector
-from .maintenance import in_view, pixel_counts, required_pixels
-from .modeling import model_detections
-from .types import Intrinsics
-
-ACTIVE, REMOVED, MERGED = 0, 1, 2
-STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
-
-# Columns of the object table: name -> (per-object shape suffix, dtype). "scores" is (C+1,).
-_COLUMNS = {
-    "center": ((3,), np.float64),
-    "yaw": ((), np.float64),
-    "size": ((3,), np.float64),
-    "visible": ((8,), bool),
-    "defined": ((), bool),
-    "n_det": ((), np.int64),
-    "n_nondet": ((), np.int64),
-    "status": ((), np.int8),
-    "first_session": ((), np.int64),
-    "first_frame": ((), np.int64),
-    "last_session": ((), np.int64),
-    "last_frame": ((), np.int64),
-}
-
-
-class ObjectTable:
-    """Every object the map ever held, as columns (structure of arrays); row r has id r + 1.
-
-    Removed and merged objects stay in the table with their status, so nothing is ever lost.
-    """
-
-    def __init__(self, n_classes: int, capacity: int = 64):
-        self.n_classes = n_classes
-        self.n = 0
-        self.cols: dict[str, np.ndarray] = {}
-        for name, (shape, dtype) in _COLUMNS.items():
-            self.cols[name] = np.zeros((capacity,) + shape, dtype=dtype)
-        self.cols["scores"] = np.zeros((capacity, n_classes + 1))
-
-    def __getattr__(self, name):
-        cols = self.__dict__.get("cols")
-        if cols is not None and name in cols:
-            return cols[name][: self.n]
-        raise AttributeError(name)
-
-    @property
-    def ids(self) -> np.ndarray:
-        return np.arange(1, self.n + 1, dtype=np.int64)
-
-    def append(self, **values) -> int:
-        if self.n == len(self.cols["yaw"]):
-            for name, arr in self.cols.items():
-                grown = np.zeros((max(2 * len(arr), 64),) + arr.shape[1:], dtype=arr.dtype)
-                grown[: self.n] = arr[: self.n]
-                self.cols[name] = grown
-        row = self.n
-        self.n += 1
-        for name, value in values.items():
-            self.cols[name][row] = value
-        return row
-
-    def boxes(self, rows) -> Boxes:
-        c = self.cols
-        return Boxes(c["center"][rows], c["yaw"][rows], c["size"][rows], c["visible"][rows])
-
-    def box(self, row) -> Box:
-        c = self.cols
-        return Box(c["center"][row].copy(), float(c["yaw"][row]), c["size"][row].copy(),
-                   c["visible"][row].copy(), bool(c["defined"][row]))
-
-    def set_box(self, row, box: Box) -> None:
-        c = self.cols
-        c["center"][row], c["yaw"][row], c["size"][row] = box.center, box.yaw, box.size
-        c["visible"][row], c["defined"][row] = box.visible, box.defined
-
-    @classmethod
-    def from_columns(cls, columns: dict) -> "ObjectTable":
-        scores = np.asarray(columns["scores"], dtype=np.float64)
-        t = cls(scores.shape[1] - 1, capacity=max(len(scores), 64))
-        t.n = len(scores)
-        t.cols["scores"][: t.n] = scores
-        for name in _COLUMNS:
-            t.cols[name][: t.n] = columns[name]
-        return t
-
-    def columns(self) -> dict:
-        return {name: arr[: self.n] for name, arr in self.cols.items()}
-
-
-class GridIndex:
-    """Active objects by the XY grid cells their footprint touches.
-
-    Per-frame queries touch only the cells around the camera, so the cost of a frame does not grow
-    with the number of objects elsewhere in the map.
-    """
-
-    def __init__(self, cell: float):
-        self.cell = float(cell)
-        self.cells: dict[tuple, set] = defaultdict(set)
-        self.where: dict[int, list] = {}
-
-    def _cells_of(self, center, size):
-        r = 0.5 * float(np.hypot(size[0], size[1]))
-        i0, i1 = int(np.floor((center[0] - r) / self.cell)), int(np.floor((center[0] + r) / self.cell))
-        j0, j1 = int(np.floor((center[1] - r) / self.cell)), int(np.floor((center[1] + r) / self.cell))
-        return [(i, j) for i in range(i0, i1 + 1) for j in range(j0, j1 + 1)]
-
-    def insert(self, row: int, center, size) -> None:
-        self.remove(row)
-        cells = self._cells_of(center, size)
-        for key in cells:
-            self.cells[key].add(row)
-        self.where[row] = cells
-
-    def remove(self, row: int) -> None:
-        for key in self.where.pop(row, ()):
-            bucket = self.cells.get(key)
-            if bucket is not None:
-                bucket.discard(row)
-                if not bucket:
-                    del self.cells[key]
-
-    def query(self, xmin, xmax, ymin, ymax) -> np.ndarray:
-        found: set = set()
-        for i in range(int(np.floor(xmin / self.cell)), int(np.floor(xmax / self.cell)) + 1):
-            for j in range(int(np.floor(ymin / self.cell)), int(np.floor(ymax / self.cell)) + 1):
-                bucket = self.cells.get((i, j))
-                if bucket:
-                    found |= bucket
-        # Sorted, so that the order of candidates (and so the map) never depends on set order.
-        return np.array(sorted(found), dtype=np.int64)
-
-
-@dataclass
-class Event:
-    session: int
-    frame: int
-    frame_key: str
-    kind: str  # created | updated | merged | non-detection | removed
-    object_id: int
-    other_id: int = 0
-    detail: str = ""
-
-
-@dataclass
-class SemanticMap:
-    """Everything a map file holds, in memory."""
-
-    classes: list[str]
-    objects: ObjectTable
-    up_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
-    events: list[Event] = field(default_factory=list)
-    sessions: list[dict] = field(default_factory=list)
-    frame_keys: set = field(default_factory=set)
-    created: str = ""
-
-    @classmethod
-    def new(cls, classes: list[str]) -> "SemanticMap":
-        return cls(list(classes), ObjectTable(len(classes)))
-
-    @property
-    def class_vector_names(self) -> list[str]:
-        return list(self.classes) + ["other"]
-
-    def active_rows(self) -> np.ndarray:
-        return np.flatnonzero(self.objects.status == ACTIVE)
+from ltc_cli.pipeline.association import containment, nearest_under_threshold, pairwise_containment, thresholds_for
+from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.geometry.camera import invert_pose
+from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap
+from ltc_cli.geometry.boxes import Box
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box, non_detection_vector
+from ltc_cli.pipeline.maintenance import in_view, pixel_counts, required_pixels
+from ltc_cli.pipeline.modeling import model_detections
+from ltc_cli.types import Intrinsics
 
 
 @dataclass
@@ -192,35 +32,6 @@ class FrameResult:
     non_detections: int = 0
     removed: int = 0
     timings: dict = field(default_factory=dict)
-
-
-class ClassMapper:
-    """Turns a detector's score vectors (K,) into the map's class vectors (C+1,), other last.
-
-    Scores of classes that the map does not hold are dropped. The probability mass a detector leaves
-    unassigned (1 - sum) is spread evenly over every entry but the top one: the least informative
-    completion, which neither favours another class nor pushes the object towards removal.
-    """
-
-    def __init__(self, detector_classes: list[str], map_classes: list[str]):
-        pos = {c: i for i, c in enumerate(map_classes)}
-        self.src = np.array([i for i, c in enumerate(detector_classes) if c in pos], dtype=int)
-        self.dst = np.array([pos[detector_classes[i]] for i in self.src], dtype=int)
-        self.size = len(map_classes) + 1
-
-    def __call__(self, scores: np.ndarray):
-        v = np.zeros(self.size)
-        np.add.at(v, self.dst, np.asarray(scores, dtype=np.float64)[self.src])
-        total = v.sum()
-        if total <= 0:
-            return None
-        if total > 1:
-            return v / total
-        top = int(v.argmax())
-        rest = np.ones(self.size, dtype=bool)
-        rest[top] = False
-        v[rest] += (1.0 - total) / rest.sum()
-        return v
 
 
 class Mapper:

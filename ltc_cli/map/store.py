@@ -16,10 +16,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from . import __version__
-from .errors import LtcError, MapFormatError, MapLockedError
-from .fileio import atomic_target
-from .mapping import _COLUMNS, Event, ObjectTable, SemanticMap
+from ltc_cli import __version__
+from ltc_cli.errors import LtcError, MapFormatError, MapLockedError
+from ltc_cli.fileio import atomic_target
+from ltc_cli.map.model import COLUMNS, Event, ObjectTable, SemanticMap
 
 FORMAT = "ltc-map"
 VERSION = 1
@@ -127,7 +127,7 @@ def load_map(path) -> SemanticMap:
     try:
         classes = _text(f["classes"][()])
         og = f["objects"]
-        cols = {name: og[name][()] for name in list(_COLUMNS) + ["scores"]}
+        cols = {name: og[name][()] for name in list(COLUMNS) + ["scores"]}
         if cols["scores"].ndim != 2 or cols["scores"].shape[1] != len(classes) + 1:
             raise MapFormatError("objects/scores does not match the class list", path)
         table = ObjectTable.from_columns(cols)

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import Boxes, project, transform
-from .types import Intrinsics
+from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.geometry.camera import project, transform
+from ltc_cli.types import Intrinsics
 
 
 def in_view(boxes: Boxes, T_camera_map: np.ndarray, intr: Intrinsics, max_depth: float) -> np.ndarray:

@@ -19,12 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import LtcError
-from .fileio import atomic_target
-from .geometry import box_corners
-from .mapping import SemanticMap
-from .query import classify
-from .groundtruth import read_ground_truth
+from ltc_cli.errors import LtcError
+from ltc_cli.fileio import atomic_target
+from ltc_cli.geometry.boxes import box_corners
+from ltc_cli.map.model import SemanticMap
+from ltc_cli.map.query import classify
+from ltc_cli.recordings.groundtruth import read_ground_truth
 
 FILL_ALPHA = 0.35          # footprint fill over the white background
 GT_COLOUR = "#6e6e6e"      # ground-truth outlines

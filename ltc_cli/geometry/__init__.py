@@ -1,0 +1,1 @@
+"""Pure numpy geometry: Z-oriented boxes, cameras and poses, footprint polygons."""

@@ -1,0 +1,199 @@
+"""Clustering of back-projected mask points: the largest DBSCAN cluster of each detection.
+
+Exact DBSCAN (scikit-learn's semantics, on a KD-tree) is the reference; the default grid DBSCAN
+and voxel components are the fast equivalents (DESIGN.md 1.1, measured in docs/decisions.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+
+# Half of the 26-neighbourhood: each undirected voxel adjacency is found once.
+_HALF_NEIGHBOURS = np.array(
+    [
+        (dx, dy, dz)
+        for dx in (-1, 0, 1)
+        for dy in (-1, 0, 1)
+        for dz in (-1, 0, 1)
+        if (dx, dy, dz) > (0, 0, 0)
+    ]
+)
+
+
+def voxel_components(points_xyz: np.ndarray, group: np.ndarray, eps: float):
+    """Connected components of occupied voxels of size eps, never joining different groups.
+
+    DBSCAN with min_samples = 1 on grid neighbours: two points are linked when their voxels touch
+    (26-neighbourhood). Any two points closer than eps are in touching voxels, so every DBSCAN
+    (min_samples = 1) cluster lies inside one component. Returns labels (N,) int.
+    """
+    n = len(points_xyz)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    ijk = np.floor(points_xyz / eps).astype(np.int64)
+    ijk -= ijk.min(axis=0) - 1  # >= 1, so a -1 neighbour offset never borrows from another field
+    span = int(ijk.max()) + 2
+    if span >= 1 << 17 or int(group.max()) >= 1 << 10:
+        # Too wide for packed keys (kilometres of points): exact DBSCAN is still correct.
+        return _tree_components(points_xyz, group, eps)
+    bx, by = np.int64(1) << np.int64(34), np.int64(1) << np.int64(17)
+    keys = (group.astype(np.int64) << np.int64(51)) + ijk[:, 0] * bx + ijk[:, 1] * by + ijk[:, 2]
+    uniq, inverse = np.unique(keys, return_inverse=True)
+    offsets = _HALF_NEIGHBOURS @ np.array([bx, by, 1], dtype=np.int64)
+    rows, cols = [], []
+    for off in offsets:
+        target = uniq + off
+        pos = np.searchsorted(uniq, target)
+        pos_c = np.minimum(pos, len(uniq) - 1)
+        hit = uniq[pos_c] == target
+        rows.append(np.flatnonzero(hit))
+        cols.append(pos_c[hit])
+    r = np.concatenate(rows)
+    c = np.concatenate(cols)
+    m = len(uniq)
+    graph = coo_matrix((np.ones(len(r), dtype=np.int8), (r, c)), shape=(m, m))
+    _, vox_labels = connected_components(graph, directed=False)
+    return vox_labels[inverse.ravel()]
+
+
+def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
+    """DBSCAN on a grid of cells of side eps / 2, all groups at once: labels (N,), -1 for noise.
+
+    A cell's density is the number of points in it and its 26 neighbours (a 1.5 eps cube, about the
+    volume of DBSCAN's eps-ball); cells with at least min_samples are core. Core cells whose
+    distance can be under eps (up to 2 cells apart) are linked; a non-core cell next to a core one
+    is a border cell of its cluster; the rest is noise. Like DBSCAN, sparse "flying pixels" between
+    an object and the wall do not bridge them, at the cost of one sort and a few searchsorted
+    calls instead of a neighbour search per point.
+    """
+    n = len(points_xyz)
+    labels = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return labels
+    cell = eps / 2
+    ijk = np.floor(points_xyz / cell).astype(np.int64)
+    ijk -= ijk.min(axis=0) - 2
+    if int(ijk.max()) + 3 >= 1 << 17 or int(group.max()) >= 1 << 10:
+        return _tree_components(points_xyz, group, eps)
+    bx, by = np.int64(1) << np.int64(34), np.int64(1) << np.int64(17)
+    keys = (group.astype(np.int64) << np.int64(51)) + ijk[:, 0] * bx + ijk[:, 1] * by + ijk[:, 2]
+    uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    m = len(uniq)
+    rows, cols = [], []
+    for off in _OFFSETS_2 @ np.array([bx, by, 1], dtype=np.int64):
+        target = uniq + off
+        pos = np.minimum(np.searchsorted(uniq, target), m - 1)
+        hit = np.flatnonzero(uniq[pos] == target)
+        rows.append(hit)
+        cols.append(pos[hit])
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    nb = np.repeat(_NEAR_2, [len(h) for h in rows])  # the pair's cells touch (26-neighbourhood)
+    density = (counts + np.bincount(r[nb], weights=counts[c[nb]], minlength=m)
+               + np.bincount(c[nb], weights=counts[r[nb]], minlength=m))
+    core = density >= min_samples
+    cc = core[r] & core[c]
+    graph = coo_matrix((np.ones(int(cc.sum()), dtype=np.int8), (r[cc], c[cc])), shape=(m, m))
+    _, comp = connected_components(graph, directed=False)
+    cell_label = np.where(core, comp, -1)
+    # Border cells: next to a core cell (26-neighbourhood), they join its cluster.
+    for a, b in ((r, c), (c, r)):
+        sel = nb & core[a] & ~core[b]
+        tgt = b[sel]
+        unset = cell_label[tgt] == -1
+        cell_label[tgt[unset]] = comp[a[sel][unset]]
+    return cell_label[inverse]
+
+
+def _tree_components(points_xyz, group, eps):
+    tree = cKDTree(points_xyz)
+    pairs = tree.query_pairs(eps, output_type="ndarray")
+    pairs = pairs[group[pairs[:, 0]] == group[pairs[:, 1]]]
+    n = len(points_xyz)
+    graph = coo_matrix((np.ones(len(pairs), dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def dbscan_labels(points_xyz: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
+    """Exact DBSCAN (Ester et al. 1996): labels (N,), -1 for noise.
+
+    Core points have at least min_samples points (themselves included) within eps; clusters are the
+    connected components of core points; a border point joins the cluster of a core neighbour.
+    """
+    n = len(points_xyz)
+    labels = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return labels
+    tree = cKDTree(points_xyz)
+    pairs = tree.query_pairs(eps, output_type="ndarray")
+    counts = np.bincount(pairs.ravel(), minlength=n) + 1
+    core = counts >= min_samples
+    cc = pairs[core[pairs[:, 0]] & core[pairs[:, 1]]]
+    graph = coo_matrix((np.ones(len(cc), dtype=np.int8), (cc[:, 0], cc[:, 1])), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    labels[core] = comp[core]
+    # Border points: the first core neighbour in pair order (DBSCAN's border assignment is order
+    # dependent by definition; any core neighbour is a valid answer).
+    for a, b in ((0, 1), (1, 0)):
+        sel = core[pairs[:, a]] & ~core[pairs[:, b]]
+        tgt = pairs[sel, b]
+        src = pairs[sel, a]
+        unset = labels[tgt] == -1
+        labels[tgt[unset]] = comp[src[unset]]
+    # Renumber densely.
+    uniq = np.unique(labels[labels >= 0])
+    remap = np.full(int(labels.max()) + 2 if n else 1, -1)
+    remap[uniq] = np.arange(len(uniq))
+    labels[labels >= 0] = remap[labels[labels >= 0]]
+    return labels
+
+
+def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
+    """For each group (detection), the indices of its largest cluster, or None if too small.
+
+    ``voxel``: voxel components over all groups at once, then components with fewer than
+    min_samples points are noise. ``dbscan``: exact DBSCAN per group. Returns a list indexed by
+    group id.
+    """
+    n_groups = int(group.max()) + 1 if len(group) else 0
+    out: list = [None] * n_groups
+    if method == "dbscan":
+        for g in range(n_groups):
+            idx = np.flatnonzero(group == g)
+            labels = dbscan_labels(points_xyz[idx], eps, min_samples)
+            if (labels >= 0).any():
+                best = np.bincount(labels[labels >= 0]).argmax()
+                out[g] = idx[labels == best]
+        return out
+    if method == "grid":
+        labels = grid_dbscan_labels(points_xyz, group, eps, min_samples)
+        keep = labels >= 0
+        if not keep.any():
+            return out
+        points_idx = np.flatnonzero(keep)
+        labels, group = labels[keep], group[keep]
+    else:
+        points_idx = np.arange(len(points_xyz))
+        labels = voxel_components(points_xyz, group, eps)
+    counts = np.bincount(labels)
+    # The largest component of each group: sort by (group, -count) and take the first per group.
+    comp_group = np.zeros(len(counts), dtype=np.int64)
+    comp_group[labels] = group
+    order = np.lexsort((-counts, comp_group))
+    first = order[np.r_[True, comp_group[order][1:] != comp_group[order][:-1]]]
+    for comp in first:
+        if counts[comp] >= min_samples:
+            out[int(comp_group[comp])] = points_idx[labels == comp]
+    return out
+
+
+_OFFSETS_2 = np.array(
+    [(dx, dy, dz) for dx in range(-2, 3) for dy in range(-2, 3) for dz in range(-2, 3) if (dx, dy, dz) > (0, 0, 0)]
+)
+
+
+_NEAR_2 = np.abs(_OFFSETS_2).max(axis=1) <= 1

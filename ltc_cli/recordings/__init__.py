@@ -1,0 +1,1 @@
+"""Recordings: opening them with a reader, images, masks (RLE) and ground truth."""

@@ -1,0 +1,24 @@
+"""Opening a recording: by the reader the user names, or the first installed reader that
+recognises the folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ltc_cli import plugins
+from ltc_cli.errors import RecordingError
+from ltc_cli.types import Recording
+
+
+def open_recording(path, reader: str | None = None, options: dict | None = None) -> Recording:
+    """Open a recording with the named reader, or the first installed reader that recognises it."""
+    p = Path(path)
+    if not p.exists():
+        raise RecordingError("recording does not exist", p)
+    if reader:
+        return plugins.get("readers", reader).factory.open(p, options or {})
+    for name, reg in sorted(plugins.registry("readers").items()):
+        if reg.factory.sniff(p):
+            return reg.factory.open(p, options or {})
+    known = ", ".join(sorted(plugins.registry("readers")))
+    raise RecordingError(f"no reader recognises this folder (installed readers: {known})", p)

@@ -1,0 +1,1 @@
+"""Tools around the mapper: simulate recordings, evaluate maps, calibrate detectors."""
