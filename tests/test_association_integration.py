@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 
 from ltc_cli.pipeline.association import centroid_distance, nearest_under_threshold, thresholds_for, vertex_distance
-from ltc_cli.geometry.boxes import SHIFTS, Boxes, box_corners
-from ltc_cli.pipeline.integration import Box, fuse_scores, integrate_box, non_detection_vector
+from ltc_cli.geometry.boxes import SHIFTS, Box, Boxes, box_corners
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box
+from ltc_cli.pipeline.maintenance import non_detection_vector
 
 
 def boxes(center, yaw, size, visible=None):

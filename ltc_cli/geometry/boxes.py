@@ -95,6 +95,10 @@ class Boxes:
     def __len__(self) -> int:
         return len(self.yaw)
 
+    def row(self, k: int, defined: bool = False) -> "Box":
+        """Box k as a single :class:`Box` (copies), with its Defined flag."""
+        return Box(self.center[k].copy(), float(self.yaw[k]), self.size[k].copy(), self.visible[k].copy(), defined)
+
     def take(self, idx) -> "Boxes":
         out = Boxes(self.center[idx], self.yaw[idx], self.size[idx], self.visible[idx])
         if self._corners is not None:  # already computed: keep them
@@ -183,7 +187,8 @@ def align_yaw(yaw_ref, yaw, size):
 
 @dataclass
 class Box:
-    """One Z-oriented box: center (3,), yaw, size (3,), visible (8,) bool, defined."""
+    """One Z-oriented box, a row of :class:`Boxes` with its Defined flag: center (3,), yaw, size (3,),
+    visible (8,) bool, defined (all three dimensions observed, DESIGN.md 1.1)."""
 
     center: np.ndarray
     yaw: float

@@ -12,6 +12,12 @@ import numpy as np
 from ltc_cli.geometry.boxes import Box, Boxes
 
 
+def top_class(scores: np.ndarray) -> np.ndarray:
+    """The class index (...,) of class vectors (..., C+1): the argmax over the map's classes, with
+    `other` (last) left out, so an object about to be removed still says what it was."""
+    return np.asarray(scores)[..., :-1].argmax(axis=-1)
+
+
 ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.geometry.boxes import SHIFTS, Boxes
+from ltc_cli.geometry.polygons import convex_intersection_area
 
 
 def vertex_distance(det: Boxes, cands: Boxes, min_visible_pairs: int = 3):
@@ -70,8 +71,6 @@ def containment(det: Boxes, cands: Boxes) -> np.ndarray:
     Exact for Z-oriented boxes: footprint polygon intersection times the z overlap, over the
     detection's volume.
     """
-    from ltc_cli.geometry.polygons import convex_intersection_area  # the exact polygon clipper
-
     m = len(cands)
     if m == 0:
         return np.zeros(0)
@@ -87,8 +86,6 @@ def containment(det: Boxes, cands: Boxes) -> np.ndarray:
 
 def pairwise_containment(boxes: Boxes) -> np.ndarray:
     """(M, M) matrix whose [i, j] is the fraction of box i's volume inside box j (diagonal 1)."""
-    from ltc_cli.geometry.polygons import convex_intersection_area
-
     m = len(boxes)
     out = np.eye(m)
     if m < 2:
@@ -103,4 +100,64 @@ def pairwise_containment(boxes: Boxes) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         out[i, j] = np.where(vol[i] > 0, inter / vol[i], 0.0)
         out[j, i] = np.where(vol[j] > 0, inter / vol[j], 0.0)
+    return out
+
+
+def containing_candidate(inside: np.ndarray, same_class: np.ndarray, need_same: float,
+                         need_other: float | None) -> int:
+    """Index of the candidate that contains most of a detection, or -1.
+
+    inside (M,): the share of the detection's volume inside each candidate (:func:`containment`);
+    same_class (M,) bool. A box mostly inside a map object of its class is a partial view of it,
+    whatever its vertices say (an occluder close behind fools the Z-buffer). A detection inside an
+    object of another class is most often that object with its class confused, but it must be
+    further inside (``need_other``; None: never) to say so.
+    """
+    if inside.size == 0:
+        return -1
+    need = np.where(same_class, need_same, need_other if need_other else np.inf)
+    frac = np.where(inside >= need, inside, -1.0)
+    best = int(frac.argmax())
+    return best if frac[best] >= 0 else -1
+
+
+def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other: float,
+                    need_same: float | None, need_other: float | None) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
+    sorted by distance (the closest pairs merge first).
+
+    ``distance(one, many)`` is the association metric. Two objects match when their distance is
+    under the threshold of their classes, or, with containment on, when one lies mostly inside the
+    other (one object seen in parts).
+    """
+    m = len(boxes)
+    if m < 2:
+        return []
+    if need_same:
+        inside = pairwise_containment(boxes)
+        inside = np.maximum(inside, inside.T)  # either one inside the other
+        need = np.where(top[:, None] == top[None, :], need_same, need_other or np.inf)
+        contained = inside >= need
+    pairs = []
+    for a in range(m - 1):
+        rest = np.arange(a + 1, m)
+        dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
+        close = dist <= thresholds_for(int(top[a]), top[rest], same, other)
+        if need_same:
+            close |= contained[a, rest]
+        pairs.extend((float(dist[b]), a, int(rest[b])) for b in np.flatnonzero(close))
+    return sorted(pairs)
+
+
+def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray) -> list[tuple[int, int]]:
+    """(keep, drop) index pairs from :func:`duplicate_pairs`, closest first, each object at most
+    once dropped; the older object (smaller id) keeps its id."""
+    gone: set = set()
+    out = []
+    for _, a, b in pairs:
+        if a in gone or b in gone:
+            continue
+        keep, drop = (a, b) if ids[a] < ids[b] else (b, a)
+        out.append((keep, drop))
+        gone.add(drop)
     return out

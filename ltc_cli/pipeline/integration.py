@@ -22,13 +22,6 @@ def fuse_scores(s_i: np.ndarray, s_j: np.ndarray, D: float) -> np.ndarray:
     return num / num.sum()
 
 
-def non_detection_vector(n_classes: int, v_other: float) -> np.ndarray:
-    """Eq. 4: the class vector (r+1,) of a non-detection: (1 - v_Other) / r per class, v_Other last."""
-    v = np.full(n_classes + 1, (1.0 - v_other) / n_classes)
-    v[-1] = v_other
-    return v
-
-
 def _corresponding_visible(src: Box, dst: Box) -> np.ndarray:
     """src's visible flags (8,) re-indexed onto dst's vertices by the best cyclic shift."""
     _, shift = vertex_distance(src.as_boxes(), dst.as_boxes(), min_visible_pairs=9)
@@ -90,3 +83,15 @@ def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float
     if det.defined:  # i Defined, j partial: the complete view replaces the partial estimate
         return Box(det.center.copy(), det.yaw, det.size.copy(), det.visible.copy(), True)
     return enclosing_box(det, obj, erosion, min_extent)
+
+
+def merge_objects(keep: Box, drop: Box, s_keep: np.ndarray, s_drop: np.ndarray, w_keep: float, w_drop: float,
+                  erosion: float, min_extent: float) -> tuple[Box, np.ndarray]:
+    """Instance de-duplication: (box, class vector) of two map objects that are one.
+
+    The box follows the four cases of :func:`integrate_box` with ``drop`` as the observation; the
+    class vectors follow eq. 3 generalised to two map objects: the observation-weighted mean.
+    """
+    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent)
+    s = w_keep * s_keep + w_drop * s_drop
+    return box, s / s.sum()

@@ -124,3 +124,26 @@ def required_pixels(projected: np.ndarray, min_pixels: float, min_fraction, floo
     # A detector misses a mostly hidden object far more often than a whole one: its silence about
     # an object of which it saw only a sliver says little. Ask for min_share of the object's image.
     return np.maximum(need, min_share * projected)
+
+
+def non_detection_vector(n_classes: int, v_other: float) -> np.ndarray:
+    """Eq. 4: the class vector (r+1,) of a non-detection: (1 - v_Other) / r per class, v_Other last."""
+    v = np.full(n_classes + 1, (1.0 - v_other) / n_classes)
+    v[-1] = v_other
+    return v
+
+
+def non_detection_vectors(classes: list[str], v_other: float, per_class: dict | None) -> np.ndarray:
+    """Eq. 4 vectors (C, C+1), one per top class of the object that was not detected.
+
+    A calibration may measure v_Other per class: a detector that rarely finds tables says little by
+    not finding one, so a table's non-detection weighs less.
+    """
+    per_class = per_class or {}
+    return np.array([non_detection_vector(len(classes), float(per_class.get(c, v_other))) for c in classes])
+
+
+def other_leads(scores: np.ndarray) -> np.ndarray:
+    """(M,) bool: objects whose class vectors (M, C+1) now have `other` (last) as their top entry."""
+    scores = np.atleast_2d(scores)
+    return scores.argmax(axis=1) == scores.shape[1] - 1

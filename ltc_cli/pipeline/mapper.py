@@ -1,7 +1,9 @@
-"""The semantic map in memory and the per-frame pipeline that runs the four stages on it.
+"""The mapper: runs the four stages on each frame and applies their decisions to the map.
 
-No I/O here: the map store (store.py) saves and loads :class:`SemanticMap`; the CLI drives
-:class:`Mapper` frame by frame.
+The stages (modeling.py, association.py, integration.py, maintenance.py) are pure functions over
+arrays that return decisions; this file only feeds them, writes their results into the object table,
+keeps the grid index current, and logs every change in the event log. No I/O: the store saves and
+loads the :class:`SemanticMap`; ingest drives :class:`Mapper` frame by frame.
 """
 
 from __future__ import annotations
@@ -11,13 +13,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ltc_cli.pipeline.association import containment, nearest_under_threshold, pairwise_containment, thresholds_for
-from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
-from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap
-from ltc_cli.geometry.boxes import Box
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, non_detection_vector
-from ltc_cli.pipeline.maintenance import in_view, pixel_counts, required_pixels
+from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
+from ltc_cli.pipeline.association import (
+    containing_candidate, containment, duplicate_pairs, greedy_merges, nearest_under_threshold, thresholds_for,
+)
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
+from ltc_cli.pipeline.maintenance import in_view, non_detection_vectors, pixel_counts, required_pixels
 from ltc_cli.pipeline.modeling import model_detections
 from ltc_cli.types import Intrinsics
 
@@ -47,31 +50,26 @@ class Mapper:
         t = smap.objects
         for row in smap.active_rows():
             self.index.insert(int(row), t.center[row], t.size[row])
-        self.n_classes = len(smap.classes)
         floor = set(config["modeling"]["floor_classes"] or [])
         self.grounded_class = np.array([c in floor for c in smap.classes] + [False])
         priors = config["modeling"]["class_depth"] or {}
         self.depth_prior = np.array([float(priors.get(c, np.nan)) for c in smap.classes] + [np.nan])
-        # v_Other of eq. 4 for an object of each class: a calibration may measure it per class (a
-        # detector that rarely finds tables says little by not finding one).
-        per_class = config["maintenance"]["v_other_per_class"] or {}
-        v = [float(per_class.get(c, config["maintenance"]["v_other"])) for c in smap.classes]
-        self.nondet_vectors = np.array([non_detection_vector(self.n_classes, vc) for vc in v])  # (C, C+1)
+        m_cfg = config["maintenance"]
+        self.nondet_vectors = non_detection_vectors(smap.classes, m_cfg["v_other"], m_cfg["v_other_per_class"])
 
-    # -- helpers -----------------------------------------------------------------------------
+    # -- bookkeeping -------------------------------------------------------------------------
     def _weight(self, row: int) -> float:
+        """D of eq. 3: the observations of the object so far, capped by ``integration.max_weight``."""
         t = self.map.objects
         d = float(t.n_det[row] + t.n_nondet[row])
         cap = self.cfg["integration"]["max_weight"]
         return d if cap is None else min(d, float(cap))
 
-    def _top_class(self, scores: np.ndarray) -> np.ndarray:
-        return np.asarray(scores)[..., :-1].argmax(axis=-1)
-
     def _log(self, frame_index, frame_key, kind, obj, other=0, detail=""):
         self.map.events.append(Event(self.session, frame_index, frame_key, kind, int(obj), int(other), detail))
 
     def _candidates(self, T_map_camera, T_camera_map, intr, max_depth) -> np.ndarray:
+        """Rows of the active objects in the camera's frustum and depth range (sorted)."""
         cam = T_map_camera[:3, 3]
         reach = max_depth + 0.5
         rows = self.index.query(cam[0] - reach, cam[0] + reach, cam[1] - reach, cam[1] + reach)
@@ -79,9 +77,6 @@ class Mapper:
             return rows
         keep = in_view(self.map.objects.boxes(rows), T_camera_map, intr, max_depth)
         return rows[keep]
-
-    def _distances(self, det_boxes: Boxes, k: int, rows: np.ndarray) -> np.ndarray:
-        return self.metric.distance(det_boxes.take(slice(k, k + 1)), self.map.objects.boxes(rows))
 
     # -- the pipeline ------------------------------------------------------------------------
     def process_frame(
@@ -105,85 +100,82 @@ class Mapper:
         """
         clock = clock or time.perf_counter
         res = FrameResult(detections=len(masks))
-        cfg, t = self.cfg, self.map.objects
-        a_cfg = cfg["association"]
         T_camera_map = invert_pose(T_map_camera)
 
         t0 = clock()
-        grounded = np.array([self.grounded_class[int(self._top_class(v))] for v in scores], dtype=bool)
-        top = [int(self._top_class(v)) for v in scores]
-        modeled = model_detections(masks, depth_m, intr, T_map_camera, cfg["modeling"], depth_range,
-                                   grounded=grounded, floor_z=floor_z, class_depth=self.depth_prior[top])
+        top = np.array([int(top_class(v)) for v in scores], dtype=int)
+        modeled = model_detections(masks, depth_m, intr, T_map_camera, self.cfg["modeling"], depth_range,
+                                   grounded=self.grounded_class[top], floor_z=floor_z,
+                                   class_depth=self.depth_prior[top])
         res.boxes = len(modeled.source)
         t1 = clock()
 
-        # Stage 2 + 3: each detection takes the nearest candidate under the threshold.
-        cand = self._candidates(T_map_camera, T_camera_map, intr, depth_range[1])
-        cand_list = list(cand)
+        # Stages 2 + 3: each detection in turn takes the nearest candidate under the threshold, or
+        # becomes a new object that later detections of the frame may take.
+        in_view_rows = list(self._candidates(T_map_camera, T_camera_map, intr, depth_range[1]))
         matched_rows: set = set()
         t_assoc = 0.0
         for k in range(len(modeled.source)):
             ta = clock()
             s_det = scores[int(modeled.source[k])]
-            det_box = Box(modeled.boxes.center[k], float(modeled.boxes.yaw[k]), modeled.boxes.size[k],
-                          modeled.boxes.visible[k], bool(modeled.defined[k]))
-            rows = np.array(cand_list, dtype=np.int64)
-            j = -1
-            if rows.size:
-                dist = self._distances(modeled.boxes, k, rows)
-                thr = thresholds_for(int(self._top_class(s_det)), self._top_class(t.scores[rows]),
-                                     a_cfg["threshold_same_class"], a_cfg["threshold_other_class"])
-                best = nearest_under_threshold(dist, thr)
-                j = int(rows[best]) if best >= 0 else -1
-                if j < 0 and a_cfg["containment"]:
-                    j = self._containing(modeled.boxes.take(slice(k, k + 1)), int(self._top_class(s_det)), rows)
-                    if j >= 0:
-                        # A box mostly inside a map object of its class is a partial view of it,
-                        # whatever its vertices say (an occluder close behind fools the Z-buffer).
-                        det_box.defined = False
+            det_box = modeled.boxes.row(k, bool(modeled.defined[k]))
+            j, partial = self._associate(modeled.boxes.take(slice(k, k + 1)), int(top_class(s_det)),
+                                         np.array(in_view_rows, dtype=np.int64))
+            if partial:
+                det_box.defined = False
             t_assoc += clock() - ta
             if j >= 0:
-                self._integrate(j, det_box, s_det, 1.0, frame_index, frame_key)
-                matched_rows.add(j)
+                self._integrate(j, det_box, s_det, frame_index, frame_key)
                 res.matched += 1
             else:
-                row = t.append(
-                    center=det_box.center, yaw=det_box.yaw, size=det_box.size, visible=det_box.visible,
-                    defined=det_box.defined, scores=s_det, n_det=1, n_nondet=0, status=ACTIVE,
-                    first_session=self.session, first_frame=frame_index,
-                    last_session=self.session, last_frame=frame_index,
-                )
-                self.index.insert(row, det_box.center, det_box.size)
-                self._log(frame_index, frame_key, "created", row + 1)
-                cand_list.append(row)
-                matched_rows.add(row)
+                j = self._create(det_box, s_det, frame_index, frame_key)
+                in_view_rows.append(j)
                 res.created += 1
+            matched_rows.add(j)
         t2 = clock()
 
-        # Stage 4: candidates that should have been seen and were not get a non-detection (eq. 4).
-        in_view_rows = np.array(cand_list, dtype=np.int64)
-        if in_view_rows.size:
-            m_cfg = cfg["maintenance"]
-            vis_px, proj_px = pixel_counts(t.boxes(in_view_rows), T_map_camera, depth_m, intr,
-                                           m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range)
-            matched = np.array([r in matched_rows for r in in_view_rows])
-            scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
-            need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale,
-                                   m_cfg["min_visible_fraction"], m_cfg["min_pixels_floor"] * scale,
-                                   m_cfg["min_visible_share"])
-            nondet = self.policy.non_detections(matched, vis_px, need)
-            for row in in_view_rows[np.asarray(nondet, dtype=bool) & ~matched]:
+        # Stage 4: objects that should have been seen and were not get a non-detection (eq. 4).
+        rows = np.array(in_view_rows, dtype=np.int64)
+        if rows.size:
+            matched = np.array([r in matched_rows for r in rows])
+            for row in rows[self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)]:
                 res.non_detections += 1
-                if self._non_detection(int(row), frame_index, frame_key):
-                    res.removed += 1
+                res.removed += self._non_detection(int(row), frame_index, frame_key)
         t3 = clock()
 
-        if a_cfg["merge"]:
+        if self.cfg["association"]["merge"]:
             res.merged = self._merge_in_view(frame_index, frame_key, T_camera_map, intr, depth_range[1])
         t4 = clock()
         res.timings = {"modeling": t1 - t0, "association": t_assoc, "integration": t2 - t1 - t_assoc,
                        "maintenance": t3 - t2, "merge": t4 - t3}
         return res
+
+    def _associate(self, det: Boxes, det_class: int, rows: np.ndarray) -> tuple[int, bool]:
+        """(row or -1, matched by containment) of one detection among candidate rows (stage 2)."""
+        if rows.size == 0:
+            return -1, False
+        a_cfg, t = self.cfg["association"], self.map.objects
+        cand_classes = top_class(t.scores[rows])
+        dist = self.metric.distance(det, t.boxes(rows))
+        thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"])
+        best = nearest_under_threshold(dist, thr)
+        if best >= 0:
+            return int(rows[best]), False
+        if not a_cfg["containment"]:
+            return -1, False
+        best = containing_candidate(containment(det, t.boxes(rows)), cand_classes == det_class,
+                                    a_cfg["containment"], a_cfg["containment_other_class"])
+        return (int(rows[best]), True) if best >= 0 else (-1, False)
+
+    def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range) -> np.ndarray:
+        """(M,) bool: which in-view rows get a non-detection, as the maintenance policy decides."""
+        m_cfg = self.cfg["maintenance"]
+        vis_px, proj_px = pixel_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
+                                       m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range)
+        scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
+        need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
+                               m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
+        return np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
         """End of a session: remove the tentative objects created in it, those that fewer than
@@ -196,59 +188,61 @@ class Mapper:
         t = self.map.objects
         rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.first_session == self.session))
         for row in rows:
-            t.cols["status"][row] = REMOVED
-            self.index.remove(int(row))
+            self._set_status(int(row), REMOVED)
             self._log(frame_index, frame_key, "removed", row + 1,
                       detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) in the session that created it, "
                               f"fewer than {min_detections}"))
         return len(rows)
 
-    def _containing(self, det: Boxes, det_class: int, rows: np.ndarray) -> int:
-        """The same-class candidate that contains most of the detection box (at least
-        ``association.containment`` of its volume), or -1."""
-        t = self.map.objects
-        a_cfg = self.cfg["association"]
-        frac = containment(det, t.boxes(rows))
-        same = self._top_class(t.scores[rows]) == det_class
-        # A detection inside an object of another class is most often that object with its class
-        # confused, but it needs to be further inside to say so.
-        need = np.where(same, a_cfg["containment"], a_cfg["containment_other_class"] or np.inf)
-        frac = np.where(frac >= need, frac, -1.0)
-        best = int(frac.argmax())
-        return int(rows[best]) if frac[best] >= 0 else -1
+    # -- applying decisions ------------------------------------------------------------------
+    def _set_status(self, row: int, status: int) -> None:
+        self.map.objects.cols["status"][row] = status
+        self.index.remove(row)
 
-    def _integrate(self, row, det_box: Box, s_det, w_det, frame_index, frame_key, log=True):
+    def _seen(self, row: int, frame_index: int) -> None:
+        cols = self.map.objects.cols
+        cols["last_session"][row] = self.session
+        cols["last_frame"][row] = frame_index
+
+    def _create(self, box: Box, s_det, frame_index, frame_key) -> int:
+        t = self.map.objects
+        row = t.append(
+            center=box.center, yaw=box.yaw, size=box.size, visible=box.visible, defined=box.defined,
+            scores=s_det, n_det=1, n_nondet=0, status=ACTIVE, first_session=self.session,
+            first_frame=frame_index, last_session=self.session, last_frame=frame_index,
+        )
+        self.index.insert(row, box.center, box.size)
+        self._log(frame_index, frame_key, "created", row + 1)
+        return row
+
+    def _integrate(self, row, det_box: Box, s_det, frame_index, frame_key) -> None:
+        """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3."""
         t = self.map.objects
         i_cfg = self.cfg["integration"]
-        obj = t.box(row)
-        new = integrate_box(det_box, obj, w_det, self._weight(row), i_cfg["erosion"],
+        new = integrate_box(det_box, t.box(row), 1.0, self._weight(row), i_cfg["erosion"],
                             self.cfg["modeling"]["min_extent"])
         t.set_box(row, new)
         t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], self._weight(row))  # eq. 3
         t.cols["n_det"][row] += 1
-        t.cols["last_session"][row] = self.session
-        t.cols["last_frame"][row] = frame_index
+        self._seen(row, frame_index)
         self.index.insert(row, new.center, new.size)
-        if log:
-            self._log(frame_index, frame_key, "updated", row + 1)
+        self._log(frame_index, frame_key, "updated", row + 1)
 
     def _non_detection(self, row, frame_index, frame_key) -> bool:
-        """Fuse a non-detection into ``row`` (eqs. 3-4); remove it when `other` leads. True if removed."""
+        """Fuse a non-detection into ``row`` (eqs. 3-4); remove it when the policy says so."""
         t = self.map.objects
-        top = int(self._top_class(t.scores[row]))
-        s = fuse_scores(self.nondet_vectors[top], t.scores[row], self._weight(row))
+        s = fuse_scores(self.nondet_vectors[int(top_class(t.scores[row]))], t.scores[row], self._weight(row))
         t.cols["scores"][row] = s
         t.cols["n_nondet"][row] += 1
         self._log(frame_index, frame_key, "non-detection", row + 1)
-        if int(np.argmax(s)) == self.n_classes:
-            t.cols["status"][row] = REMOVED
-            self.index.remove(row)
-            top = int(s[:-1].argmax())
-            detail = (f"other {s[-1]:.3f} > {self.map.classes[top]} {s[top]:.3f} after "
-                      f"{int(t.n_nondet[row])} non-detections and {int(t.n_det[row])} detections")
-            self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
-            return True
-        return False
+        if not bool(np.asarray(self.policy.removals(s[None]))[0]):
+            return False
+        self._set_status(row, REMOVED)
+        top = int(top_class(s))
+        detail = (f"other {s[-1]:.3f} > {self.map.classes[top]} {s[top]:.3f} after "
+                  f"{int(t.n_nondet[row])} non-detections and {int(t.n_det[row])} detections")
+        self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
+        return True
 
     def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
         """Instance de-duplication: in-view map objects that now match each other become one."""
@@ -257,54 +251,27 @@ class Mapper:
         if rows.size < 2:
             return 0
         a_cfg = self.cfg["association"]
-        boxes = t.boxes(rows)
-        top = self._top_class(t.scores[rows])
-        if a_cfg["containment"]:
-            inside = pairwise_containment(boxes)
-            inside = np.maximum(inside, inside.T)  # either one inside the other
-            need = np.where(top[:, None] == top[None, :], a_cfg["containment"],
-                            a_cfg["containment_other_class"] or np.inf)
-            contained = inside >= need
-        pairs = []
-        for a in range(len(rows) - 1):
-            rest = np.arange(a + 1, len(rows))
-            dist = self.metric.distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
-            thr = thresholds_for(int(top[a]), top[rest], a_cfg["threshold_same_class"],
-                                 a_cfg["threshold_other_class"])
-            close = dist <= thr
-            if a_cfg["containment"]:
-                close |= contained[a, rest]  # one object seen in parts
-            for b in np.flatnonzero(close):
-                pairs.append((float(dist[b]), int(rows[a]), int(rows[rest[b]])))
-        merged = 0
-        gone: set = set()
-        for _, ra, rb in sorted(pairs):
-            if ra in gone or rb in gone:
-                continue
-            keep, drop = (ra, rb) if ra < rb else (rb, ra)  # the older object keeps its id
-            self._absorb(keep, drop, frame_index, frame_key)
-            gone.add(drop)
-            merged += 1
-        return merged
+        pairs = duplicate_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance,
+                                a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
+                                a_cfg["containment"], a_cfg["containment_other_class"])
+        merges = greedy_merges(pairs, rows + 1)
+        for keep, drop in merges:
+            self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
+        return len(merges)
 
     def _absorb(self, keep, drop, frame_index, frame_key) -> None:
         t = self.map.objects
-        w_keep, w_drop = self._weight(keep), self._weight(drop)
         i_cfg = self.cfg["integration"]
-        new = integrate_box(t.box(drop), t.box(keep), w_drop, w_keep, i_cfg["erosion"],
-                            self.cfg["modeling"]["min_extent"])
-        t.set_box(keep, new)
-        # Eq. 3 generalised to two map objects: the observation-weighted mean of both vectors.
-        s = w_keep * t.scores[keep] + w_drop * t.scores[drop]
-        t.cols["scores"][keep] = s / s.sum()
+        box, scores = merge_objects(t.box(keep), t.box(drop), t.scores[keep], t.scores[drop], self._weight(keep),
+                                    self._weight(drop), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+        t.set_box(keep, box)
+        t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet"):
             t.cols[col][keep] += t.cols[col][drop]
         if (t.first_session[drop], t.first_frame[drop]) < (t.first_session[keep], t.first_frame[keep]):
             t.cols["first_session"][keep] = t.first_session[drop]
             t.cols["first_frame"][keep] = t.first_frame[drop]
-        t.cols["last_session"][keep] = self.session
-        t.cols["last_frame"][keep] = frame_index
-        t.cols["status"][drop] = MERGED
-        self.index.remove(drop)
-        self.index.insert(keep, new.center, new.size)
+        self._seen(keep, frame_index)
+        self._set_status(drop, MERGED)
+        self.index.insert(keep, box.center, box.size)
         self._log(frame_index, frame_key, "merged", keep + 1, drop + 1)
