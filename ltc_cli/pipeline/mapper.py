@@ -20,7 +20,7 @@ from ltc_cli.pipeline.association import (
     containing_candidate, containment, duplicate_pairs, greedy_merges, nearest_under_threshold, thresholds_for,
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
-from ltc_cli.pipeline.maintenance import in_view, non_detection_vectors, pixel_counts, required_pixels
+from ltc_cli.pipeline.maintenance import in_view, non_detection_vectors, other_leads, pixel_counts, required_pixels
 from ltc_cli.pipeline.modeling import model_detections
 from ltc_cli.types import Intrinsics
 
@@ -55,6 +55,8 @@ class Mapper:
         priors = config["modeling"]["class_depth"] or {}
         self.depth_prior = np.array([float(priors.get(c, np.nan)) for c in smap.classes] + [np.nan])
         m_cfg = config["maintenance"]
+        # A policy without a removal rule of its own keeps the paper's: removed once `other` leads.
+        self._removals = getattr(policy, "removals", other_leads)
         self.nondet_vectors = non_detection_vectors(smap.classes, m_cfg["v_other"], m_cfg["v_other_per_class"])
 
     # -- bookkeeping -------------------------------------------------------------------------
@@ -235,7 +237,7 @@ class Mapper:
         t.cols["scores"][row] = s
         t.cols["n_nondet"][row] += 1
         self._log(frame_index, frame_key, "non-detection", row + 1)
-        if not bool(np.asarray(self.policy.removals(s[None]))[0]):
+        if not bool(np.asarray(self._removals(s[None]))[0]):
             return False
         self._set_status(row, REMOVED)
         top = int(top_class(s))
