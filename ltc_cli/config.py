@@ -12,7 +12,7 @@ from ltc_cli.errors import ConfigError
 
 # Keys whose value is a free-form mapping (plugin options) or may be null.
 _FREE = {("detector", "options"), ("modeling", "class_depth"), ("maintenance", "v_other_per_class")}
-_NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class"), ("modeling", "edge_jump")}
+_NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class"), ("modeling", "edge_jump"), ("association", "other_class_volume_ratio"), ("association", "partial_adjoin_gap")}
 
 
 def defaults() -> dict:

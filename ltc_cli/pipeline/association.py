@@ -103,32 +103,51 @@ def pairwise_containment(boxes: Boxes) -> np.ndarray:
     return out
 
 
+def similar_volume(vol_a: np.ndarray, vol_b: np.ndarray, min_ratio: float | None) -> np.ndarray:
+    """(M,) bool: box volumes within ``min_ratio`` of each other (smaller / larger); None: always.
+
+    A detection of another class may be the same object with its class confused (a table called
+    book) only when it is about as large: a cup inside a table is a cup, not a partial table.
+    """
+    if min_ratio is None:
+        return np.ones(np.broadcast(vol_a, vol_b).shape, dtype=bool)
+    lo, hi = np.minimum(vol_a, vol_b), np.maximum(vol_a, vol_b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(hi > 0, lo / hi, 1.0) >= min_ratio
+
+
 def containing_candidate(inside: np.ndarray, same_class: np.ndarray, need_same: float,
-                         need_other: float | None) -> int:
+                         need_other: float | None, comparable: np.ndarray | None = None) -> int:
     """Index of the candidate that contains most of a detection, or -1.
 
     inside (M,): the share of the detection's volume inside each candidate (:func:`containment`);
     same_class (M,) bool. A box mostly inside a map object of its class is a partial view of it,
     whatever its vertices say (an occluder close behind fools the Z-buffer). A detection inside an
     object of another class is most often that object with its class confused, but it must be
-    further inside (``need_other``; None: never) to say so.
+    further inside (``need_other``; None: never) and, where ``comparable`` (M,) bool is given, of a
+    similar volume (:func:`similar_volume`) to say so.
     """
     if inside.size == 0:
         return -1
-    need = np.where(same_class, need_same, need_other if need_other else np.inf)
+    other_ok = need_other if need_other else np.inf
+    if comparable is not None:
+        other_ok = np.where(comparable, other_ok, np.inf)
+    need = np.where(same_class, need_same, other_ok)
     frac = np.where(inside >= need, inside, -1.0)
     best = int(frac.argmax())
     return best if frac[best] >= 0 else -1
 
 
 def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other: float,
-                    need_same: float | None, need_other: float | None) -> list[tuple[float, int, int]]:
+                    need_same: float | None, need_other: float | None,
+                    other_volume_ratio: float | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
     ``distance(one, many)`` is the association metric. Two objects match when their distance is
     under the threshold of their classes, or, with containment on, when one lies mostly inside the
-    other (one object seen in parts).
+    other (one object seen in parts); objects of different classes only when of similar volume
+    (``other_volume_ratio``, :func:`similar_volume`).
     """
     m = len(boxes)
     if m < 2:
@@ -136,7 +155,9 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     if need_same:
         inside = pairwise_containment(boxes)
         inside = np.maximum(inside, inside.T)  # either one inside the other
-        need = np.where(top[:, None] == top[None, :], need_same, need_other or np.inf)
+        vol = np.prod(boxes.size, axis=1)
+        other_ok = np.where(similar_volume(vol[:, None], vol[None, :], other_volume_ratio), need_other or np.inf, np.inf)
+        need = np.where(top[:, None] == top[None, :], need_same, other_ok)
         contained = inside >= need
     pairs = []
     for a in range(m - 1):
@@ -161,3 +182,44 @@ def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray) -> list[
         out.append((keep, drop))
         gone.add(drop)
     return out
+
+
+def _segment_distances(points_xy: np.ndarray, rings_xy: np.ndarray) -> np.ndarray:
+    """Distance (M,) from each of M point sets (M, P, 2) to the closed polygon ring (M, R, 2)."""
+    a = rings_xy
+    b = np.roll(rings_xy, -1, axis=1)
+    ab = b - a  # (M, R, 2)
+    ap = points_xy[:, :, None, :] - a[:, None, :, :]  # (M, P, R, 2)
+    t = np.clip((ap * ab[:, None]).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12)[:, None], 0.0, 1.0)
+    d = np.linalg.norm(ap - t[..., None] * ab[:, None], axis=-1)
+    return d.min(axis=(1, 2))
+
+
+def footprint_gaps(det: Boxes, cands: Boxes) -> np.ndarray:
+    """Gap (M,) in metres between one box and M boxes: the XY distance between their footprints
+    (0 where they overlap), or inf where their z intervals do not overlap."""
+    m = len(cands)
+    if m == 0:
+        return np.zeros(0)
+    foot_d = np.repeat(det.corners[:, :4, :2], m, axis=0)  # (M, 4, 2)
+    foot_c = cands.corners[:, :4, :2]
+    gap = np.minimum(_segment_distances(foot_d, foot_c), _segment_distances(foot_c, foot_d))
+    gap = np.where(convex_intersection_area(foot_d, foot_c) > 0, 0.0, gap)
+    zd0, zd1 = det.center[0, 2] - det.size[0, 2] / 2, det.center[0, 2] + det.size[0, 2] / 2
+    zc0, zc1 = cands.center[:, 2] - cands.size[:, 2] / 2, cands.center[:, 2] + cands.size[:, 2] / 2
+    return np.where(np.minimum(zd1, zc1) > np.maximum(zd0, zc0), gap, np.inf)
+
+
+def adjoining_partial(gaps: np.ndarray, same_class: np.ndarray, cand_partial: np.ndarray, max_gap: float | None) -> int:
+    """The same-class partial candidate whose footprint touches a partial detection (gap within
+    ``max_gap``), nearest first, or -1.
+
+    Two partial views of one long object (a dining table seen end by end) neither contain each
+    other nor share vertices, but they adjoin; their enclosing box is the object.
+    """
+    if max_gap is None or gaps.size == 0:
+        return -1
+    ok = same_class & cand_partial & (gaps <= max_gap)
+    if not ok.any():
+        return -1
+    return int(np.where(ok, gaps, np.inf).argmin())

@@ -17,7 +17,8 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    containing_candidate, containment, duplicate_pairs, greedy_merges, nearest_under_threshold, thresholds_for,
+    adjoining_partial, containing_candidate, containment, footprint_gaps, duplicate_pairs, greedy_merges, nearest_under_threshold, similar_volume,
+    thresholds_for,
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
 from ltc_cli.pipeline.maintenance import in_view, non_detection_vectors, other_leads, pixel_counts, required_pixels
@@ -50,6 +51,8 @@ class Mapper:
         t = smap.objects
         for row in smap.active_rows():
             self.index.insert(int(row), t.center[row], t.size[row])
+        moving = set(config["map"].get("moving_classes") or [])
+        self.moving_class = np.array([c in moving for c in smap.classes] + [False])
         floor = set(config["modeling"]["floor_classes"] or [])
         self.grounded_class = np.array([c in floor for c in smap.classes] + [False])
         priors = config["modeling"]["class_depth"] or {}
@@ -106,6 +109,9 @@ class Mapper:
 
         t0 = clock()
         top = np.array([int(top_class(v)) for v in scores], dtype=int)
+        if self.moving_class[top].any():  # people and animals are never map objects
+            keep = np.flatnonzero(~self.moving_class[top])
+            masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
         modeled = model_detections(masks, depth_m, intr, T_map_camera, self.cfg["modeling"], depth_range,
                                    grounded=self.grounded_class[top], floor_z=floor_z,
                                    class_depth=self.depth_prior[top])
@@ -122,7 +128,7 @@ class Mapper:
             s_det = scores[int(modeled.source[k])]
             det_box = modeled.boxes.row(k, bool(modeled.defined[k]))
             j, partial = self._associate(modeled.boxes.take(slice(k, k + 1)), int(top_class(s_det)),
-                                         np.array(in_view_rows, dtype=np.int64))
+                                         np.array(in_view_rows, dtype=np.int64), det_box.defined)
             if partial:
                 det_box.defined = False
             t_assoc += clock() - ta
@@ -152,7 +158,7 @@ class Mapper:
                        "maintenance": t3 - t2, "merge": t4 - t3}
         return res
 
-    def _associate(self, det: Boxes, det_class: int, rows: np.ndarray) -> tuple[int, bool]:
+    def _associate(self, det: Boxes, det_class: int, rows: np.ndarray, det_defined: bool = True) -> tuple[int, bool]:
         """(row or -1, matched by containment) of one detection among candidate rows (stage 2)."""
         if rows.size == 0:
             return -1, False
@@ -165,8 +171,14 @@ class Mapper:
             return int(rows[best]), False
         if not a_cfg["containment"]:
             return -1, False
-        best = containing_candidate(containment(det, t.boxes(rows)), cand_classes == det_class,
-                                    a_cfg["containment"], a_cfg["containment_other_class"])
+        cand = t.boxes(rows)
+        comparable = similar_volume(np.prod(det.size, axis=1), np.prod(cand.size, axis=1),
+                                    a_cfg["other_class_volume_ratio"])
+        best = containing_candidate(containment(det, cand), cand_classes == det_class, a_cfg["containment"],
+                                    a_cfg["containment_other_class"], comparable)
+        if best < 0 and not det_defined:
+            best = adjoining_partial(footprint_gaps(det, cand), cand_classes == det_class, ~t.defined[rows],
+                                     a_cfg["partial_adjoin_gap"])
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range) -> np.ndarray:
@@ -221,14 +233,24 @@ class Mapper:
         """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3."""
         t = self.map.objects
         i_cfg = self.cfg["integration"]
-        new = integrate_box(det_box, t.box(row), 1.0, self._weight(row), i_cfg["erosion"],
-                            self.cfg["modeling"]["min_extent"])
+        obj = t.box(row)
+        if self._foreign(s_det, t.scores[row], det_box, obj):
+            new = obj  # the class evidence fuses; the geometry of a different object does not
+        else:
+            new = integrate_box(det_box, obj, 1.0, self._weight(row), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         t.set_box(row, new)
         t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], self._weight(row))  # eq. 3
         t.cols["n_det"][row] += 1
         self._seen(row, frame_index)
         self.index.insert(row, new.center, new.size)
         self._log(frame_index, frame_key, "updated", row + 1)
+
+    def _foreign(self, s_a, s_b, box_a: Box, box_b: Box) -> bool:
+        """True when box a must not reshape box b: another top class and a dissimilar volume."""
+        if int(top_class(s_a)) == int(top_class(s_b)):
+            return False
+        ratio = self.cfg["association"]["other_class_volume_ratio"]
+        return not bool(similar_volume(np.prod(box_a.size), np.prod(box_b.size), ratio))
 
     def _non_detection(self, row, frame_index, frame_key) -> bool:
         """Fuse a non-detection into ``row`` (eqs. 3-4); remove it when the policy says so."""
@@ -255,7 +277,8 @@ class Mapper:
         a_cfg = self.cfg["association"]
         pairs = duplicate_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance,
                                 a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
-                                a_cfg["containment"], a_cfg["containment_other_class"])
+                                a_cfg["containment"], a_cfg["containment_other_class"],
+                                a_cfg["other_class_volume_ratio"])
         merges = greedy_merges(pairs, rows + 1)
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
@@ -264,8 +287,11 @@ class Mapper:
     def _absorb(self, keep, drop, frame_index, frame_key) -> None:
         t = self.map.objects
         i_cfg = self.cfg["integration"]
-        box, scores = merge_objects(t.box(keep), t.box(drop), t.scores[keep], t.scores[drop], self._weight(keep),
+        b_keep, b_drop = t.box(keep), t.box(drop)
+        box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], self._weight(keep),
                                     self._weight(drop), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+        if self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep):
+            box = max(b_keep, b_drop, key=lambda b: float(np.prod(b.size)))  # never the smaller one's
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet"):
