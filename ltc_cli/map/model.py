@@ -33,6 +33,9 @@ COLUMNS = {
     "defined": ((), bool),
     "n_det": ((), np.int64),
     "n_nondet": ((), np.int64),
+    # Frames in which the object was clearly visible (enough pixels for a non-detection), detected
+    # or not: with n_nondet, the detector's hit rate on it (the learnt per-class detection rate).
+    "n_clear": ((), np.int64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),
     "first_frame": ((), np.int64),
@@ -98,7 +101,8 @@ class ObjectTable:
         t.n = len(scores)
         t.cols["scores"][: t.n] = scores
         for name in COLUMNS:
-            t.cols[name][: t.n] = columns[name]
+            if name in columns:  # maps written before a column existed read it as zeros
+                t.cols[name][: t.n] = columns[name]
         return t
 
     def columns(self) -> dict:

@@ -127,7 +127,7 @@ def load_map(path) -> SemanticMap:
     try:
         classes = _text(f["classes"][()])
         og = f["objects"]
-        cols = {name: og[name][()] for name in list(COLUMNS) + ["scores"]}
+        cols = {name: og[name][()] for name in list(COLUMNS) + ["scores"] if name in og or name != "n_clear"}
         if cols["scores"].ndim != 2 or cols["scores"].shape[1] != len(classes) + 1:
             raise MapFormatError("objects/scores does not match the class list", path)
         table = ObjectTable.from_columns(cols)

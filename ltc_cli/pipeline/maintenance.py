@@ -147,3 +147,32 @@ def other_leads(scores: np.ndarray) -> np.ndarray:
     """(M,) bool: objects whose class vectors (M, C+1) now have `other` (last) as their top entry."""
     scores = np.atleast_2d(scores)
     return scores.argmax(axis=1) == scores.shape[1] - 1
+
+
+def class_hit_counts(top: np.ndarray, n_clear: np.ndarray, n_nondet: np.ndarray, n_classes: int):
+    """(views (C,), hits (C,)) summed over objects by their top class: clear views, and those in
+    which the object was detected (a clear view without a detection is a non-detection)."""
+    views = np.bincount(top, weights=n_clear, minlength=n_classes).astype(np.int64)
+    misses = np.bincount(top, weights=n_nondet, minlength=n_classes).astype(np.int64)
+    return views, views - misses
+
+
+def learnt_detection_rate(views: np.ndarray, hits: np.ndarray, prior: float, prior_views: float) -> np.ndarray:
+    """Per-class detection rate (C,) on clearly visible objects: the Beta-prior posterior mean
+    (hits + k p0) / (views + k p0 / p0), so a class with few views stays near the prior p0."""
+    return (hits + prior_views * prior) / (views + prior_views)
+
+
+def v_other_from_detection_rate(rate: np.ndarray, score: float, margin: float, lo: float = 0.05,
+                                hi: float = 0.9) -> np.ndarray:
+    """v_Other (C,) of eq. 4 for a detector that finds a clearly visible object of the class with
+    probability ``rate`` and a top score about ``score``.
+
+    Under eq. 3 with a capped weight, the class vector of an object that is there tends to the mean
+    of its observations: `other` ~ (1 - p) v_Other from the misses, its class ~ p s from the hits.
+    It stays when (1 - p) v_Other < p s; ``margin`` (< 1) keeps it clear of that boundary, so an
+    object of a class the detector finds one time in three is not removed by its misses, while one
+    that is gone (every clear view a miss) still goes, after more misses the weaker the detector.
+    """
+    rate = np.clip(np.asarray(rate, dtype=np.float64), 1e-6, 1 - 1e-6)
+    return np.clip(margin * rate * score / (1.0 - rate), lo, hi)

@@ -21,7 +21,10 @@ from ltc_cli.pipeline.association import (
     thresholds_for,
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
-from ltc_cli.pipeline.maintenance import in_view, non_detection_vectors, other_leads, pixel_counts, required_pixels
+from ltc_cli.pipeline.maintenance import (
+    class_hit_counts, in_view, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
+    v_other_from_detection_rate,
+)
 from ltc_cli.pipeline.modeling import model_detections
 from ltc_cli.types import Intrinsics
 
@@ -58,9 +61,52 @@ class Mapper:
         priors = config["modeling"]["class_depth"] or {}
         self.depth_prior = np.array([float(priors.get(c, np.nan)) for c in smap.classes] + [np.nan])
         m_cfg = config["maintenance"]
+        self.confirmed = max(1, int(m_cfg["min_detections"]))
+        rows = smap.active_rows()
+        rows = rows[t.n_det[rows] >= self.confirmed]
+        self.rate_views, self.rate_hits = class_hit_counts(
+            top_class(t.scores[rows]), np.maximum(t.n_clear[rows], t.n_nondet[rows]), t.n_nondet[rows],
+            len(smap.classes))
+        self._touched: dict = {}
         # A policy without a removal rule of its own keeps the paper's: removed once `other` leads.
         self._removals = getattr(policy, "removals", other_leads)
-        self.nondet_vectors = non_detection_vectors(smap.classes, m_cfg["v_other"], m_cfg["v_other_per_class"])
+
+    # -- the learnt detection rate -----------------------------------------------------------
+    def _contribution(self, row: int):
+        """(class, clear views, hits) that ``row`` adds to the per-class counts, or None."""
+        t = self.map.objects
+        if t.status[row] != ACTIVE or t.n_det[row] < self.confirmed:
+            return None
+        views = max(int(t.n_clear[row]), int(t.n_nondet[row]))
+        return int(top_class(t.scores[row])), views, views - int(t.n_nondet[row])
+
+    def _touch(self, row: int) -> None:
+        """Remember what ``row`` counted for before it changes (see :meth:`_settle`)."""
+        if row not in self._touched:
+            self._touched[row] = self._contribution(row) if row < self.map.objects.n else None
+
+    def _settle(self) -> None:
+        """Apply the changes of the touched rows to the per-class counts, so the counts always equal
+        a recount over the table (a resumed ingest learns exactly what an uninterrupted one does)."""
+        for row, before in self._touched.items():
+            for sign, c in ((-1, before), (1, self._contribution(row))):
+                if c is not None:
+                    self.rate_views[c[0]] += sign * c[1]
+                    self.rate_hits[c[0]] += sign * c[2]
+        self._touched.clear()
+
+    def non_detection_vectors(self) -> np.ndarray:
+        """Eq. 4 vectors (C, C+1) by the object's class: v_Other from a calibration where it gives
+        one, else from the detection rate learnt on this map (``maintenance.learn_detection_rate``),
+        else the configured v_Other."""
+        m_cfg = self.cfg["maintenance"]
+        v = np.full(len(self.map.classes), float(m_cfg["v_other"]))
+        if m_cfg["learn_detection_rate"]:
+            rate = learnt_detection_rate(self.rate_views, self.rate_hits, m_cfg["rate_prior"], m_cfg["rate_prior_views"])
+            v = v_other_from_detection_rate(rate, m_cfg["rate_score"], m_cfg["rate_margin"])
+        given = m_cfg["v_other_per_class"] or {}
+        v = np.array([float(given.get(c, vc)) for c, vc in zip(self.map.classes, v)])
+        return non_detection_vectors(self.map.classes, 0.0, dict(zip(self.map.classes, v)))
 
     # -- bookkeeping -------------------------------------------------------------------------
     def _weight(self, row: int) -> float:
@@ -146,13 +192,19 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            for row in rows[self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)]:
+            missed, clear = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)
+            vectors = self.non_detection_vectors()
+            for row in rows[clear]:
+                self._touch(int(row))
+                self.map.objects.cols["n_clear"][row] += 1
+            for row in rows[missed]:
                 res.non_detections += 1
-                res.removed += self._non_detection(int(row), frame_index, frame_key)
+                res.removed += self._non_detection(int(row), vectors, frame_index, frame_key)
         t3 = clock()
 
         if self.cfg["association"]["merge"]:
             res.merged = self._merge_in_view(frame_index, frame_key, T_camera_map, intr, depth_range[1])
+        self._settle()
         t4 = clock()
         res.timings = {"modeling": t1 - t0, "association": t_assoc, "integration": t2 - t1 - t_assoc,
                        "maintenance": t3 - t2, "merge": t4 - t3}
@@ -181,15 +233,17 @@ class Mapper:
                                      a_cfg["partial_adjoin_gap"])
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
-    def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range) -> np.ndarray:
-        """(M,) bool: which in-view rows get a non-detection, as the maintenance policy decides."""
+    def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range):
+        """(missed (M,), clear (M,)) bool over in-view rows: which get a non-detection, as the
+        maintenance policy decides, and which were clearly visible (enough pixels to say so)."""
         m_cfg = self.cfg["maintenance"]
         vis_px, proj_px = pixel_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
                                        m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range)
         scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
-        return np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
+        missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
+        return missed, vis_px >= need
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
         """End of a session: remove the tentative objects created in it, those that fewer than
@@ -202,10 +256,12 @@ class Mapper:
         t = self.map.objects
         rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.first_session == self.session))
         for row in rows:
+            self._touch(int(row))
             self._set_status(int(row), REMOVED)
             self._log(frame_index, frame_key, "removed", row + 1,
                       detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) in the session that created it, "
                               f"fewer than {min_detections}"))
+        self._settle()
         return len(rows)
 
     # -- applying decisions ------------------------------------------------------------------
@@ -220,6 +276,7 @@ class Mapper:
 
     def _create(self, box: Box, s_det, frame_index, frame_key) -> int:
         t = self.map.objects
+        self._touched[t.n] = None
         row = t.append(
             center=box.center, yaw=box.yaw, size=box.size, visible=box.visible, defined=box.defined,
             scores=s_det, n_det=1, n_nondet=0, status=ACTIVE, first_session=self.session,
@@ -232,6 +289,7 @@ class Mapper:
     def _integrate(self, row, det_box: Box, s_det, frame_index, frame_key) -> None:
         """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3."""
         t = self.map.objects
+        self._touch(row)
         i_cfg = self.cfg["integration"]
         obj = t.box(row)
         if self._foreign(s_det, t.scores[row], det_box, obj):
@@ -252,10 +310,12 @@ class Mapper:
         ratio = self.cfg["association"]["other_class_volume_ratio"]
         return not bool(similar_volume(np.prod(box_a.size), np.prod(box_b.size), ratio))
 
-    def _non_detection(self, row, frame_index, frame_key) -> bool:
-        """Fuse a non-detection into ``row`` (eqs. 3-4); remove it when the policy says so."""
+    def _non_detection(self, row, vectors, frame_index, frame_key) -> bool:
+        """Fuse a non-detection into ``row`` (eqs. 3-4, ``vectors`` (C, C+1) by class); remove it
+        when the policy says so."""
         t = self.map.objects
-        s = fuse_scores(self.nondet_vectors[int(top_class(t.scores[row]))], t.scores[row], self._weight(row))
+        self._touch(row)
+        s = fuse_scores(vectors[int(top_class(t.scores[row]))], t.scores[row], self._weight(row))
         t.cols["scores"][row] = s
         t.cols["n_nondet"][row] += 1
         self._log(frame_index, frame_key, "non-detection", row + 1)
@@ -286,6 +346,8 @@ class Mapper:
 
     def _absorb(self, keep, drop, frame_index, frame_key) -> None:
         t = self.map.objects
+        self._touch(keep)
+        self._touch(drop)
         i_cfg = self.cfg["integration"]
         b_keep, b_drop = t.box(keep), t.box(drop)
         box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], self._weight(keep),
@@ -294,7 +356,7 @@ class Mapper:
             box = max(b_keep, b_drop, key=lambda b: float(np.prod(b.size)))  # never the smaller one's
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
-        for col in ("n_det", "n_nondet"):
+        for col in ("n_det", "n_nondet", "n_clear"):
             t.cols[col][keep] += t.cols[col][drop]
         if (t.first_session[drop], t.first_frame[drop]) < (t.first_session[keep], t.first_frame[keep]):
             t.cols["first_session"][keep] = t.first_session[drop]
