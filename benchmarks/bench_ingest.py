@@ -143,7 +143,7 @@ def main(argv=None):
               f"({per_frame:.1f} instances/frame, 640x480 -> 320x320 input)")
         print(f"detection, 2 threads: {1000 / two:6.1f} ms/frame  {two:5.2f} frames/s  (aggregate, two detect calls at once)")
 
-        from ltc_plugins.onnx_yolo_seg import YoloSegDetector
+        from ltc_plugins.onnx.yolo_seg import YoloSegDetector
 
         results = {}
         for label, jobs, safe in (("jobs 1", 1, True), ("jobs 2, one detect at a time", 2, False), ("jobs 2", 2, True)):

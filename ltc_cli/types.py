@@ -31,6 +31,8 @@ class Frame:
     depth_m: (H, W) float32 metres, 0 where there is no reading.
     T_world_camera: (4, 4) camera-to-world pose in the recording's world frame.
     rgb: (H, W, 3) uint8, or None when a detector does not need it.
+    warnings: problems found while loading or detecting that leave the frame usable (ingest reports
+        each one, or stops on it with ``--strict``).
     """
 
     key: str
@@ -42,6 +44,23 @@ class Frame:
     rgb_path: str | None = None
     depth_path: str | None = None
     extra: dict = field(default_factory=dict)
+    warnings: list[FrameWarning] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class FrameWarning:
+    """A problem in a recording's file that does not make the frame unusable.
+
+    once: when set, ingest reports only the first warning with this key in each recording (e.g.
+        ``"class:lamp"``, so an unknown class is named once, not in every frame).
+    """
+
+    message: str
+    path: str | None = None
+    once: str | None = None
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.message}" if self.path else self.message
 
 
 @dataclass

@@ -1,7 +1,10 @@
 """Detector ``recorded``: the detections stored in a recording's detections/ folder.
 
 Any external detector (or ground truth) can be replayed this way: one JSON file per frame with
-instances (class, score or full score vector, COCO RLE mask or a PNG of instance ids).
+instances (class, score or full score vector, COCO RLE mask or a PNG of instance ids). A file that
+breaks its schema (a score outside [0, 1] or not a finite number, ...) makes its frame unusable
+(FrameError); a class that recording.yaml's class list does not hold is a warning of the frame.
+The one option, ``folder``, names another folder of detection files.
 """
 
 from __future__ import annotations
@@ -15,8 +18,18 @@ from PIL import Image
 from ltc_cli import hookimpl
 from ltc_cli.recordings import rle
 from ltc_cli.errors import FrameError, PluginError
-from ltc_cli.validation import validate
-from ltc_cli.types import Detection, Frame
+from ltc_cli.validation import check_options, validate
+from ltc_cli.types import Detection, Frame, FrameWarning
+
+OPTIONS_SCHEMA = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "folder": {"type": ["string", "null"], "minLength": 1, "default": None,
+                   "description": "folder of the detection files (default: the recording's detections/)"},
+    },
+}  # fmt: skip
 
 
 class RecordedDetector:
@@ -29,7 +42,8 @@ class RecordedDetector:
 
     @classmethod
     def from_options(cls, recording, options: dict) -> "RecordedDetector":
-        folder = Path(options.get("folder") or Path(recording.path) / "detections")
+        options = check_options(options, OPTIONS_SCHEMA, "detector 'recorded'", PluginError)
+        folder = Path(options["folder"] or Path(recording.path) / "detections")
         if not folder.is_dir():
             raise PluginError("no detections/ folder: record detections or choose a model detector", folder)
         classes = list(recording.classes or [])
@@ -81,6 +95,14 @@ class RecordedDetector:
             else:
                 raise FrameError(f"instances.{n} has no mask (give mask, or masks_png and id)", path)
             scores = np.zeros(len(self.classes))
+            for name in dict.fromkeys([inst["class"], *inst.get("scores", {})]):
+                if name not in self._index:
+                    # Only possible when recording.yaml lists the classes (else every class named in
+                    # the files is in the vocabulary); said once per class, naming the first file.
+                    frame.warnings.append(FrameWarning(
+                        f"class {name!r} is not in recording.yaml's class list: its scores are ignored",
+                        str(path), once=f"class:{name}",
+                    ))  # fmt: skip
             if "scores" in inst:
                 for name, p in inst["scores"].items():
                     if name in self._index:

@@ -13,7 +13,7 @@ from ltc_cli.ingest.session import ingest
 from ltc_cli.recordings.open import open_recording
 from ltc_cli.map.model import ACTIVE
 from ltc_cli.map.store import load_map
-from ltc_plugins.ltc_recording import LtcRecordingReader
+from ltc_plugins.readers.ltc_recording import LtcRecordingReader
 from tests.recording import write_recording
 
 CALLS = {"metric": 0, "policy": 0, "detect": 0, "sniff": 0}

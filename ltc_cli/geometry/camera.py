@@ -7,18 +7,12 @@ z forward).
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 
 def quat_to_rot(q_xyzw) -> np.ndarray:
-    """Rotation matrix (3, 3) of a unit quaternion given as (qx, qy, qz, qw)."""
-    x, y, z, w = (float(v) for v in q_xyzw)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """Rotation matrix (3, 3) of a unit quaternion given as (qx, qy, qz, qw) (scipy's order)."""
+    return Rotation.from_quat(np.asarray(q_xyzw, dtype=np.float64)).as_matrix()
 
 
 def pose_matrix(t_xyz, q_xyzw) -> np.ndarray:
@@ -47,19 +41,22 @@ def invert_pose(T: np.ndarray) -> np.ndarray:
 
 
 def rotation_between(a, b) -> np.ndarray:
-    """Smallest rotation R (3, 3) with R a = b for unit-norm directions a, b (3,)."""
+    """Smallest rotation R (3, 3) with R a = b for directions a, b (3,) (normalised here).
+
+    For opposite directions every half turn about an axis normal to a is smallest; the one about
+    a x (1, 0, 0) (or a x (0, 1, 0) when a is along x) is returned, so a given up direction always
+    gives the same map frame.
+    """
     a = np.asarray(a, dtype=np.float64) / np.linalg.norm(a)
     b = np.asarray(b, dtype=np.float64) / np.linalg.norm(b)
-    v = np.cross(a, b)
-    c = float(a @ b)
-    if c < -1 + 1e-9:  # opposite: half turn about any axis normal to a
-        axis = np.cross(a, [1.0, 0, 0])
+    if float(a @ b) < -1 + 1e-9:
+        axis = np.cross(a, [1.0, 0.0, 0.0])
         if np.linalg.norm(axis) < 1e-6:
-            axis = np.cross(a, [0, 1.0, 0])
-        axis /= np.linalg.norm(axis)
-        return 2 * np.outer(axis, axis) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1 + c)
+            axis = np.cross(a, [0.0, 1.0, 0.0])
+        return Rotation.from_rotvec(np.pi * axis / np.linalg.norm(axis)).as_matrix()
+    # align_vectors(targets, sources) rotates sources onto targets; one pair: the shortest rotation.
+    R, _ = Rotation.align_vectors(b[None], a[None])
+    return R.as_matrix()
 
 
 def backproject(u, v, z, intr) -> np.ndarray:

@@ -169,6 +169,19 @@ def _session_row(smap, config, recordings, ups, floors, calibration) -> tuple[in
     return len(smap.sessions) - 1, row
 
 
+def _report_warnings(frame, warned: set, strict: bool, warn) -> None:
+    """Report the warnings a reader or detector left on a usable frame (a ``once`` key only the
+    first time in the recording); with ``strict`` the first one stops the ingest as a FrameError."""
+    for w in frame.warnings:
+        if w.once is not None:
+            if w.once in warned:
+                continue
+            warned.add(w.once)
+        if strict:
+            raise FrameError(w.message, w.path)
+        warn(str(w))
+
+
 def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, policy, calibration,
          checkpoint_every, strict, progress, warn, should_stop, on_frame, jobs=1) -> IngestSummary:
     session, row = _session_row(smap, config, recordings, ups, floors, calibration)
@@ -190,6 +203,7 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
                 ahead = Prefetch(rec.frames, [f"{rec.identity}/{r.key}" for r in rec.frames],
                                   smap.frame_keys, det, jobs)
             fetch = ahead.take if ahead is not None else load_and_detect(det)
+            warned: set = set()  # once-keys of this recording's frame warnings already reported
             for ref in rec.frames:
                 if should_stop():
                     summary.interrupted = True
@@ -211,6 +225,7 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
                     if progress:
                         progress(1)
                     continue
+                _report_warnings(frame, warned, strict, warn)
                 stage["load"] += t1 - t0
                 stage["detect"] += t2 - t1
                 masks, vectors = [], []

@@ -26,6 +26,11 @@ def load_rgb(path, width: int | None = None, height: int | None = None) -> np.nd
     """RGB image (H, W, 3) uint8; checks the size against the camera's when given."""
     path = Path(path)
     img = _open(path)
+    if img.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
+        # A 16-bit (or wider) single-channel image is a depth image given as colour: converting it
+        # would clip every value to white and the detector would see nothing.
+        raise FrameError(f"colour image is a 16-bit single-channel image (mode {img.mode}), not 8-bit "
+                         "colour: is it a depth image?", path)
     if img.mode != "RGB":
         img = img.convert("RGB")
     arr = np.asarray(img)
@@ -36,11 +41,15 @@ def load_rgb(path, width: int | None = None, height: int | None = None) -> np.nd
     return arr
 
 
-def load_depth(path, scale: float, width: int | None = None, height: int | None = None) -> np.ndarray:
+def load_depth(
+    path, scale: float, width: int | None = None, height: int | None = None, invalid_raw: int | None = None
+) -> np.ndarray:
     """Depth image as (H, W) float32 metres (value / scale; 0 = no reading).
 
     Only 16-bit single-channel images are accepted: an 8-bit or colour "depth" image is almost always
-    the wrong file, and silently scaling it would build a wrong map.
+    the wrong file, and silently scaling it would build a wrong map. ``invalid_raw`` is a stored
+    value that also means "no reading" (7-Scenes: 65535). An image without any reading is refused:
+    a frame that sees nothing would count every object in view as missed.
     """
     path = Path(path)
     img = _open(path)
@@ -62,4 +71,8 @@ def load_depth(path, scale: float, width: int | None = None, height: int | None 
         raise FrameError(
             f"depth image is {raw.shape[1]}x{raw.shape[0]}, the camera is {width}x{height}", path
         )
+    if invalid_raw is not None:
+        raw = np.where(raw == invalid_raw, 0, raw)
+    if not raw.any():
+        raise FrameError("depth image has no readings (every pixel is 0)", path)
     return raw.astype(np.float32) / np.float32(scale)

@@ -31,7 +31,7 @@ from PIL import Image
 from ltc_cli import hookimpl
 from ltc_cli.errors import PluginError
 from ltc_cli.types import Detection, Frame
-from ltc_plugins._onnx_common import Options, frame_rgb
+from ltc_plugins.onnx.common import OnnxDetector, bilinear_sample, frame_rgb, options_schema
 
 NAME = "onnx-maskrcnn"
 
@@ -54,26 +54,12 @@ BACKGROUND_NAMES = {"__background", "__background__", "background", "__bg"}
 PIXEL_MEAN_BGR = np.array([102.9801, 115.9465, 122.7717], dtype=np.float32)
 SIZE_DIVISIBILITY = 32
 
-DEFAULTS = {
-    "model": None,
-    "score_threshold": 0.5,
-    "mask_threshold": 0.5,
-    "classes": None,
-    "class_names": None,
-    "max_detections": 50,
-    "threads": 1,
-    "min_size": 800,
-    "max_size": 1333,
-}
-
-
-_OPTIONS = Options(NAME)
-_fail = _OPTIONS.fail
-_number = _OPTIONS.number
-_int = _OPTIONS.integer
-_names_list = _OPTIONS.names
-_model_path = _OPTIONS.model_path
-_session = _OPTIONS.session
+OPTIONS_SCHEMA = options_schema(
+    0.5,
+    min_size={"type": "integer", "minimum": 0, "default": 800,
+              "description": "short side of the model's input; 0 = the image's own size"},
+    max_size={"type": "integer", "minimum": 1, "default": 1333, "description": "long side at most"},
+)  # fmt: skip
 
 
 def paste_mask(mask28: np.ndarray, box_xyxy, height: int, width: int, threshold: float) -> np.ndarray:
@@ -100,56 +86,37 @@ def paste_mask(mask28: np.ndarray, box_xyxy, height: int, width: int, threshold:
     # Pixel centre -> mask cell coordinate (cell centres at integers), +1 for the padding.
     xs = ((np.arange(u0, u1 + 1) + 0.5) - x1) / cell_w - 0.5 + 1.0
     ys = ((np.arange(v0, v1 + 1) + 0.5) - y1) / cell_h - 0.5 + 1.0
-    out[v0 : v1 + 1, u0 : u1 + 1] = _bilinear(padded, ys, xs) > threshold
+    out[v0 : v1 + 1, u0 : u1 + 1] = bilinear_sample(padded, ys, xs) > threshold
     return out
 
 
-def _bilinear(grid: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
-    """Sample grid (h, w) at rows ys (R,) x columns xs (C,), cell centres at integers, edge-clamped."""
-    h, w = grid.shape
-    ys = np.clip(ys, 0.0, h - 1.0)
-    xs = np.clip(xs, 0.0, w - 1.0)
-    y0, x0 = np.floor(ys).astype(np.int64), np.floor(xs).astype(np.int64)
-    y1, x1 = np.minimum(y0 + 1, h - 1), np.minimum(x0 + 1, w - 1)
-    wy, wx = (ys - y0)[:, None], (xs - x0)[None, :]
-    top = grid[y0][:, x0] * (1 - wx) + grid[y0][:, x1] * wx
-    bottom = grid[y1][:, x0] * (1 - wx) + grid[y1][:, x1] * wx
-    return top * (1 - wy) + bottom * wy
-
-
-class MaskRcnnDetector:
+class MaskRcnnDetector(OnnxDetector):
     """ONNX model zoo Mask R-CNN through onnxruntime (CPU).
 
     classes: the vocabulary (``class_names`` or COCO's 80, possibly filtered by ``classes``); each
         Detection's ``scores`` (K,) holds the instance's score at its class and 0 elsewhere.
     """
 
-    # detect() keeps no state between calls (onnxruntime sessions may be run from several threads),
-    # so ingest --jobs may run it on several frames at once.
-    thread_safe = True
+    NAME = NAME
+    OPTIONS_SCHEMA = OPTIONS_SCHEMA
 
     def __init__(self, model_path, options: dict | None = None):
-        opts = _OPTIONS.merged(DEFAULTS, options)
-        opts["model"] = model_path
-        self.model_path = _model_path(opts)
-        self.score_threshold = _number(opts, "score_threshold", 0.0, 1.0)
-        self.mask_threshold = _number(opts, "mask_threshold", 0.0, 1.0, lo_open=True, hi_open=True)
-        self.max_detections = _int(opts, "max_detections", 1)
-        self.threads = _int(opts, "threads", 1)
-        self.min_size = _int(opts, "min_size", 0)
-        self.max_size = _int(opts, "max_size", 1)
+        super().__init__(model_path, options)
+        opts = self.options
+        self.min_size = int(opts["min_size"])
+        self.max_size = int(opts["max_size"])
 
         names = COCO_CLASSES
         if opts["class_names"] is not None:
-            names = _names_list(opts["class_names"], "class_names")
+            names = list(opts["class_names"])
             if names[0].lower() in BACKGROUND_NAMES:  # an 81-entry list with the background first
                 names = names[1:]
         self.label_names = list(names)  # label l -> label_names[l - 1]
         if opts["classes"] is not None:
-            wanted = _names_list(opts["classes"], "classes")
+            wanted = list(opts["classes"])
             missing = [c for c in wanted if c not in names]
             if missing:
-                _fail(f"option 'classes' names {', '.join(map(repr, missing))}, not a class of the model")
+                self.fail(f"option 'classes' names {', '.join(map(repr, missing))}, not a class of the model")
             self.classes = wanted
         else:
             self.classes = list(names)
@@ -158,24 +125,18 @@ class MaskRcnnDetector:
         for k, c in enumerate(self.classes):
             self._label_to_class[names.index(c) + 1] = k
 
-        self.session = _session(self.model_path, self.threads)
+        self.session = self.open_session()
         self._read_signature()
-
-    @classmethod
-    def from_options(cls, recording, options: dict) -> "MaskRcnnDetector":
-        """The registered factory: ``factory(recording, options)``."""
-        options = dict(options or {})
-        return cls(options.get("model"), options)
 
     def _read_signature(self) -> None:
         path = self.model_path
         inputs = self.session.get_inputs()
         if len(inputs) != 1:
-            _fail(f"model must have one input (image [3, H, W]), has {len(inputs)}", path)
+            self.fail(f"model must have one input (image [3, H, W]), has {len(inputs)}", path)
         self.input_name = inputs[0].name
         shape = inputs[0].shape
         if len(shape) != 3 or (isinstance(shape[0], int) and shape[0] != 3):
-            _fail(f"model input must be image [3, H, W] (the zoo Mask R-CNN layout), is {shape}", path)
+            self.fail(f"model input must be image [3, H, W] (the zoo Mask R-CNN layout), is {shape}", path)
         outputs = self.session.get_outputs()
         names = [o.name for o in outputs]
         if {"boxes", "labels", "scores", "masks"} <= set(names):
@@ -185,7 +146,7 @@ class MaskRcnnDetector:
             # scores, masks.
             self._out_names = names
         else:
-            _fail(f"model must have 4 outputs (boxes, labels, scores, masks), has {len(outputs)}", path)
+            self.fail(f"model must have 4 outputs (boxes, labels, scores, masks), has {len(outputs)}", path)
 
     def preprocess(self, rgb: np.ndarray) -> tuple[np.ndarray, float, float]:
         """Image (H, W, 3) uint8 RGB -> (input (3, H', W') float32, scale_x, scale_y)."""

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import ast
 import math
+from functools import partial
 
 import numpy as np
 from PIL import Image
@@ -29,36 +30,21 @@ from PIL import Image
 from ltc_cli import hookimpl
 from ltc_cli.errors import PluginError
 from ltc_cli.types import Detection, Frame
-from ltc_plugins._onnx_common import Options, frame_rgb
+from ltc_plugins.onnx.common import OnnxDetector, bilinear_sample, fail, frame_rgb, options_schema
 
 NAME = "onnx-yolo-seg"
-DEFAULTS = {
-    "model": None,
-    "score_threshold": 0.25,
-    "nms_iou": 0.45,
-    "mask_threshold": 0.5,
-    "classes": None,
-    "class_names": None,
-    "max_detections": 50,
-    "threads": 1,
-    "imgsz": None,
-}
+OPTIONS_SCHEMA = options_schema(
+    0.25,
+    nms_iou={"type": "number", "exclusiveMinimum": 0, "maximum": 1, "default": 0.45},
+    imgsz={"description": "null, n or [height, width] (input size of exports with a dynamic size)",
+           "anyOf": [{"type": "null"}, {"type": "integer", "minimum": 1},
+                     {"type": "array", "items": {"type": "integer", "minimum": 1}, "minItems": 2, "maxItems": 2}],
+           "default": None},
+)  # fmt: skip
 PAD_VALUE = 114  # Ultralytics' letterbox grey
 # Candidates entering NMS: bounds the O(n^2) NMS when a low threshold lets thousands through.
 MAX_NMS_CANDIDATES = 3000
-
-
-# --------------------------------------------------------------------------------------------------
-# Option checking (shared with onnx_maskrcnn, in _onnx_common)
-
-
-_OPTIONS = Options(NAME)
-_fail = _OPTIONS.fail
-_number = _OPTIONS.number
-_int = _OPTIONS.integer
-_names_list = _OPTIONS.names
-_model_path = _OPTIONS.model_path
-_session = _OPTIONS.session
+_fail = partial(fail, NAME)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -90,26 +76,6 @@ def nms(boxes_xyxy: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.
         iou = inter / np.maximum(area[i] + area[rest] - inter, 1e-12)
         order = rest[iou <= iou_threshold]
     return np.array(keep, dtype=np.int64)
-
-
-def bilinear_sample(grid: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
-    """Sample grid (h, w) at the outer product of row coords ys (R,) and column coords xs (C,).
-
-    Coordinates are in grid cells with cell centres at integers (the ``align_corners=False``
-    convention); outside the grid the edge value is repeated. Returns (R, C).
-    """
-    h, w = grid.shape
-    ys = np.clip(ys, 0.0, h - 1.0)
-    xs = np.clip(xs, 0.0, w - 1.0)
-    y0 = np.floor(ys).astype(np.int64)
-    x0 = np.floor(xs).astype(np.int64)
-    y1 = np.minimum(y0 + 1, h - 1)
-    x1 = np.minimum(x0 + 1, w - 1)
-    wy = (ys - y0)[:, None]
-    wx = (xs - x0)[None, :]
-    top = grid[y0][:, x0] * (1 - wx) + grid[y0][:, x1] * wx
-    bottom = grid[y1][:, x0] * (1 - wx) + grid[y1][:, x1] * wx
-    return top * (1 - wy) + bottom * wy
 
 
 def parse_names(text: str, path=None) -> list[str]:
@@ -152,34 +118,21 @@ def _size_pair(value, what: str, path=None) -> tuple[int, int]:
 # The detector
 
 
-class YoloSegDetector:
+class YoloSegDetector(OnnxDetector):
     """Ultralytics YOLOv8 / YOLO11 instance segmentation through onnxruntime (CPU).
 
     classes: the detector's vocabulary (the model's names, or the ``classes`` option's subset);
         every Detection's ``scores`` (K,) is aligned with it.
     """
 
-    # detect() keeps no state between calls (onnxruntime sessions may be run from several threads),
-    # so ingest --jobs may run it on several frames at once.
-    thread_safe = True
+    NAME = NAME
+    OPTIONS_SCHEMA = OPTIONS_SCHEMA
 
     def __init__(self, model_path, options: dict | None = None):
-        opts = _OPTIONS.merged(DEFAULTS, options)
-        opts["model"] = model_path
-        self.model_path = _model_path(opts)
-        self.score_threshold = _number(opts, "score_threshold", 0.0, 1.0)
-        self.nms_iou = _number(opts, "nms_iou", 0.0, 1.0, lo_open=True)
-        self.mask_threshold = _number(opts, "mask_threshold", 0.0, 1.0, lo_open=True, hi_open=True)
-        self.max_detections = _int(opts, "max_detections", 1)
-        self.threads = _int(opts, "threads", 1)
-        self.session = _session(self.model_path, self.threads)
-        self._read_signature(opts)
-
-    @classmethod
-    def from_options(cls, recording, options: dict) -> "YoloSegDetector":
-        """The registered factory: ``factory(recording, options)``."""
-        options = dict(options or {})
-        return cls(options.get("model"), options)
+        super().__init__(model_path, options)
+        self.nms_iou = float(self.options["nms_iou"])
+        self.session = self.open_session()
+        self._read_signature(self.options)
 
     # -- model introspection ------------------------------------------------------------------------
 
@@ -244,7 +197,7 @@ class YoloSegDetector:
         nc = channels - 4 - nm if (nm is not None and channels is not None) else None
 
         if opts.get("class_names") is not None:
-            names = _names_list(opts["class_names"], "class_names")
+            names = list(opts["class_names"])
         elif "names" in meta:
             names = parse_names(meta["names"], path)
         elif nc is not None and nc > 0:
@@ -256,7 +209,7 @@ class YoloSegDetector:
         self.model_names = names
 
         if opts.get("classes") is not None:
-            wanted = _names_list(opts["classes"], "classes")
+            wanted = list(opts["classes"])
             missing = [c for c in wanted if c not in names]
             if missing:
                 _fail(

@@ -1,0 +1,135 @@
+"""What the ONNX detector plugins share: their options (JSON Schema), the model file and the
+onnxruntime session (:class:`OnnxDetector`), the frame's colour image, and bilinear sampling of
+mask grids."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from ltc_cli.errors import FrameError, PluginError
+from ltc_cli.recordings.images import load_rgb
+from ltc_cli.types import Frame
+from ltc_cli.validation import check_options
+
+NAMES = {"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1, "uniqueItems": True}
+# Options both detectors take; each adds its own (and its score_threshold default) in options_schema.
+COMMON_OPTIONS = {
+    "model": {"type": "string", "minLength": 1,
+              "description": "the path to an ONNX file (no model is downloaded)"},
+    "score_threshold": {"type": "number", "minimum": 0, "maximum": 1},
+    "mask_threshold": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1, "default": 0.5},
+    "classes": {"anyOf": [{"type": "null"}, NAMES], "default": None,
+                "description": "null or a non-empty list of distinct class names (keep only these)"},
+    "class_names": {"anyOf": [{"type": "null"}, NAMES], "default": None,
+                    "description": "null or a non-empty list of distinct class names (overriding the model's)"},
+    "max_detections": {"type": "integer", "minimum": 1, "default": 50},
+    "threads": {"type": "integer", "minimum": 1, "default": 1},
+}  # fmt: skip
+
+
+def options_schema(score_threshold: float, **extra: dict) -> dict:
+    """A detector's options schema: the common options, its score threshold default and its own."""
+    props = {
+        **COMMON_OPTIONS,
+        "score_threshold": {**COMMON_OPTIONS["score_threshold"], "default": score_threshold},
+        **extra,
+    }
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "type": "object",
+            "required": ["model"], "additionalProperties": False, "properties": props}  # fmt: skip
+
+
+def fail(name: str, message: str, path=None) -> NoReturn:
+    """Raise PluginError naming the detector (and the file, if any)."""
+    raise PluginError(f"{name}: {message}", path=path)
+
+
+def frame_rgb(frame: Frame, name: str) -> np.ndarray:
+    """The frame's colour image (H, W, 3), loaded when the reader left it on disk; it must have the
+    depth image's size, since the masks are applied to the depth."""
+    rgb = frame.rgb
+    if rgb is None:
+        if not frame.rgb_path:
+            raise FrameError(f"{name} needs the colour image; frame {frame.key} has none")
+        rgb = load_rgb(frame.rgb_path)
+    if frame.depth_m is not None and tuple(frame.depth_m.shape[:2]) != tuple(rgb.shape[:2]):
+        raise FrameError(
+            f"colour image is {rgb.shape[1]}x{rgb.shape[0]} but depth is "
+            f"{frame.depth_m.shape[1]}x{frame.depth_m.shape[0]}",
+            frame.rgb_path or frame.key,
+        )
+    return rgb
+
+
+def bilinear_sample(grid: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """Sample grid (h, w) at the outer product of row coords ys (R,) and column coords xs (C,).
+
+    Coordinates are in grid cells with cell centres at integers (the ``align_corners=False``
+    convention); outside the grid the edge value is repeated. Returns (R, C).
+    """
+    h, w = grid.shape
+    ys = np.clip(ys, 0.0, h - 1.0)
+    xs = np.clip(xs, 0.0, w - 1.0)
+    y0 = np.floor(ys).astype(np.int64)
+    x0 = np.floor(xs).astype(np.int64)
+    y1 = np.minimum(y0 + 1, h - 1)
+    x1 = np.minimum(x0 + 1, w - 1)
+    wy = (ys - y0)[:, None]
+    wx = (xs - x0)[None, :]
+    top = grid[y0][:, x0] * (1 - wx) + grid[y0][:, x1] * wx
+    bottom = grid[y1][:, x0] * (1 - wx) + grid[y1][:, x1] * wx
+    return top * (1 - wy) + bottom * wy
+
+
+class OnnxDetector:
+    """Base of the ONNX detectors: checks the options against ``OPTIONS_SCHEMA``, finds the model
+    file and opens the onnxruntime session. Subclasses set ``NAME`` and ``OPTIONS_SCHEMA``."""
+
+    NAME = "onnx"
+    OPTIONS_SCHEMA: dict = options_schema(0.5)
+    # detect() keeps no state between calls (onnxruntime sessions may be run from several threads),
+    # so ingest --jobs may run it on several frames at once.
+    thread_safe = True
+
+    def __init__(self, model_path, options: dict | None = None):
+        given = {k: v for k, v in (options or {}).items() if k != "model"}
+        if model_path is not None:
+            given["model"] = os.fspath(model_path) if isinstance(model_path, (str, os.PathLike)) else model_path
+        self.options = check_options(given, self.OPTIONS_SCHEMA, self.NAME, PluginError)
+        self.model_path = Path(os.path.expanduser(self.options["model"]))
+        if not self.model_path.is_file():
+            self.fail("model file not found", path=self.model_path)
+        self.score_threshold = float(self.options["score_threshold"])
+        self.mask_threshold = float(self.options["mask_threshold"])
+        self.max_detections = int(self.options["max_detections"])
+        self.threads = int(self.options["threads"])
+
+    @classmethod
+    def from_options(cls, recording, options: dict):
+        """The registered factory: ``factory(recording, options)``."""
+        options = dict(options or {})
+        return cls(options.get("model"), options)
+
+    def fail(self, message: str, path=None) -> NoReturn:
+        fail(self.NAME, message, path)
+
+    def open_session(self):
+        """An onnxruntime CPU session with ``threads`` intra-op threads, run sequentially."""
+        try:
+            import onnxruntime as ort
+        except ImportError:  # pragma: no cover - onnxruntime is a dependency
+            self.fail("needs the onnxruntime package (pip install onnxruntime)")
+        so = ort.SessionOptions()
+        so.intra_op_num_threads = self.threads
+        so.inter_op_num_threads = 1
+        so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        so.log_severity_level = 3  # onnxruntime's own warnings would bypass ltc's error reporting
+        try:
+            return ort.InferenceSession(str(self.model_path), sess_options=so, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own exception types for bad files
+            self.fail(
+                f"cannot load ONNX model ({exc.__class__.__name__}: {str(exc).splitlines()[0]})", self.model_path
+            )
