@@ -51,7 +51,8 @@ def register_policies(register: RegisterPolicy) -> None:
     <ltc_cli.protocols.Policy.non_detections>` receives, for the M map objects in view of a frame,
     whether each was matched by a detection and how many of its pixels the camera should have seen
     (not hidden by other map objects nor by nearer observed depth), and returns which of them get a
-    non-detection (eq. 4).
+    non-detection (eq. 4). An optional ``Policy.removals(scores (M, C+1)) -> (M,) bool`` decides
+    which of those are removed (default: the paper's rule, once `other` leads).
     """
 
 

@@ -80,6 +80,10 @@ class Policy(Protocol):
         self, matched: np.ndarray, visible_px: np.ndarray, required_px: np.ndarray
     ) -> np.ndarray: ...
 
+    # Optional: ``removals(scores (M, C+1)) -> (M,) bool`` decides which objects that just got a
+    # non-detection are removed, given their fused class vectors (other last). A policy without it
+    # keeps the paper's rule, removal once `other` leads (``static`` never removes).
+
 
 #: ``factory(options) -> Policy``; ``options`` is the config's ``maintenance`` section.
 PolicyFactory = Callable[[dict], Policy]
