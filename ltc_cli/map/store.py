@@ -32,6 +32,7 @@ SESSION_COLUMNS = {
     "started": "s", "finished": "s", "status": "s", "sources": "s", "recordings": "s",
     "readers": "s", "detector": "s", "metric": "s", "policy": "s", "settings": "s", "v_other": "f",
     "ltc_version": "s", "frames_done": "i", "frames_skipped": "i", "up_rotation": "s", "floor_z": "s",
+    "visit": "i",  # 1 for a recording's first ingest, n for its n-th (--revisit); 0 in older maps
 }
 
 
