@@ -236,14 +236,21 @@ def parse_set(item: str) -> dict:
     return out
 
 
-def _read_file(path) -> dict:
+def read_yaml(path, what: str):
+    """The YAML document in ``path`` (safe_load); ConfigError naming the file when it cannot be
+    read or parsed. ``what`` names the document in the message ("config", "calibration")."""
     p = Path(path)
     try:
-        data = yaml.safe_load(p.read_text())
+        return yaml.safe_load(p.read_text())
     except OSError as exc:
-        raise ConfigError(f"cannot read config ({exc.strerror})", p) from None
+        raise ConfigError(f"cannot read {what} ({exc.strerror})", p) from None
     except yaml.YAMLError as exc:
-        raise ConfigError(f"not valid YAML ({str(exc).splitlines()[0]})", p) from None
+        raise ConfigError(f"{what} is not valid YAML ({str(exc).splitlines()[0]})", p) from None
+
+
+def _read_file(path) -> dict:
+    p = Path(path)
+    data = read_yaml(p, "config")
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -14,7 +14,8 @@ import numpy as np
 import yaml
 
 from ltc_cli import __version__
-from ltc_cli.errors import ConfigError, LtcError
+from ltc_cli.config import read_yaml
+from ltc_cli.errors import LtcError
 from ltc_cli.fileio import write_text_atomic
 from ltc_cli.validation import validate
 
@@ -224,14 +225,8 @@ def write_calibration(cal: Calibration | dict, path) -> dict:
 
 def load_calibration(path) -> dict:
     """Read and check a calibration file (schemas/calibration.schema.json)."""
-    p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"cannot read calibration ({exc.strerror})", p) from None
-    except yaml.YAMLError:
-        raise ConfigError("calibration is not valid YAML", p) from None
-    validate(doc, "calibration", p)
+    doc = read_yaml(path, "calibration")
+    validate(doc, "calibration", path)
     return doc
 
 
