@@ -19,6 +19,7 @@ import numpy as np
 from ltc_cli import __version__, plugins
 from ltc_cli.config import load_config
 from ltc_cli.errors import LtcError
+from ltc_cli.ingest.signals import stop_on_signals
 
 
 class LtcGroup(click.Group):
@@ -49,12 +50,6 @@ def _warn(message: str) -> None:
     click.echo(f"warning: {message}", err=True)
 
 
-def _frame_count(recordings, reader) -> int:
-    from ltc_cli.recordings.open import open_recording
-
-    return sum(len(open_recording(r, reader)) for r in recordings)
-
-
 @contextmanager
 def _progress(label: str, count: Callable[[], int]):
     """A progress bar on a terminal, of ``count()`` steps; nothing in a pipe. Yields the callback
@@ -64,25 +59,6 @@ def _progress(label: str, count: Callable[[], int]):
         return
     with click.progressbar(length=count(), label=label, file=sys.stderr) as bar:
         yield bar.update
-
-
-@contextmanager
-def _stop_on_signals():
-    """SIGINT and SIGTERM ask a run to stop after its current frame (it commits, then returns); a
-    second Ctrl-C stops at once. Yields {"signal": the first signal received, or None}."""
-    stop = {"signal": None}
-
-    def on_signal(signum, _frame):
-        if stop["signal"] is not None and signum == signal.SIGINT:
-            raise KeyboardInterrupt  # a second Ctrl-C: stop now (the map is still committed)
-        stop["signal"] = signum
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield stop
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 @cli.command()
@@ -107,8 +83,9 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     # The handlers go in before anything slow (imports, reading settings, opening recordings), so
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
-    with _stop_on_signals() as stop:
+    with stop_on_signals() as stop:
         from ltc_cli.ingest.session import ingest as run_ingest
+        from ltc_cli.recordings.open import count_frames
         from ltc_cli.tools.calibration_file import load_calibration
 
         cfg = load_config(config_file, sets)
@@ -119,7 +96,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         if policy:
             cfg["maintenance"]["policy"] = policy
         calib = load_calibration(calibration) if calibration else None
-        with _progress("ingest", lambda: _frame_count(recordings, reader)) as progress:
+        with _progress("ingest", lambda: count_frames(recordings, reader)) as progress:
             summary = run_ingest(
                 list(recordings), map_path, cfg, reader=reader, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=_warn,
@@ -392,13 +369,14 @@ def evaluate(map_path, gt_path, prev_path, max_distance, fmt):
 @click.option("--table", is_flag=True, help="Print the per-class figures before the summary.")
 def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, table):
     """Measure a detector on RECORDING's ground-truth instance masks; write v_Other and the figures."""
+    from ltc_cli.recordings.open import count_frames
     from ltc_cli.tools.calibrate import calibrate
     from ltc_cli.tools.calibration_file import write_calibration
 
     cfg = load_config(config_file, sets)
     if detector:
         cfg["detector"]["name"] = detector
-    with _progress("calibrate", lambda: _frame_count([recording], reader)) as progress:
+    with _progress("calibrate", lambda: count_frames([recording], reader)) as progress:
         cal = calibrate(
             recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader,
             min_visible_pixels=cfg["maintenance"]["min_visible_pixels"], min_pixels=min_pixels,
