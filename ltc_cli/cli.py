@@ -10,6 +10,8 @@ import json
 import signal
 import sys
 from collections import Counter
+from contextlib import contextmanager
+from typing import Callable
 
 import click
 import numpy as np
@@ -17,6 +19,7 @@ import numpy as np
 from ltc_cli import __version__, plugins
 from ltc_cli.config import load_config
 from ltc_cli.errors import LtcError
+from ltc_cli.ingest.signals import stop_on_signals
 
 
 class LtcGroup(click.Group):
@@ -43,6 +46,21 @@ def _plural(n: int, word: str) -> str:
     return f"{n} {word}{'' if n == 1 else 's'}"
 
 
+def _warn(message: str) -> None:
+    click.echo(f"warning: {message}", err=True)
+
+
+@contextmanager
+def _progress(label: str, count: Callable[[], int]):
+    """A progress bar on a terminal, of ``count()`` steps; nothing in a pipe. Yields the callback
+    a long-running library call takes as ``progress`` (None in a pipe)."""
+    if not sys.stderr.isatty():
+        yield None
+        return
+    with click.progressbar(length=count(), label=label, file=sys.stderr) as bar:
+        yield bar.update
+
+
 @cli.command()
 @click.argument("recordings", nargs=-1, required=True, type=click.Path())
 @click.option("--map", "map_path", required=True, type=click.Path(dir_okay=False), help="The map file (.h5); created if absent.")
@@ -57,62 +75,48 @@ def _plural(n: int, word: str) -> str:
 @click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Threads that load and detect the next frames while the current one is mapped (the map is the same as with 1).")
-def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict, reader, jobs):
+@click.option("--revisit", is_flag=True,
+              help="Map recordings already in the map again, as a new session (the same route driven again); "
+                   "an interrupted revisit resumes with the same command.")
+def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict,
+           reader, jobs, revisit):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
-    from ltc_cli.ingest.session import ingest as run_ingest
-    from ltc_cli.ingest.session import load_calibration
+    # The handlers go in before anything slow (imports, reading settings, opening recordings), so
+    # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
+    with stop_on_signals() as stop:
+        from ltc_cli.ingest.session import ingest as run_ingest
+        from ltc_cli.recordings.open import count_frames
+        from ltc_cli.tools.calibration_file import load_calibration
 
-    cfg = load_config(config_file, sets)
-    if detector:
-        cfg["detector"]["name"] = detector
-    if metric:
-        cfg["association"]["metric"] = metric
-    if policy:
-        cfg["maintenance"]["policy"] = policy
-    calib = load_calibration(calibration) if calibration else None
-
-    stop = {"signal": None}
-
-    def on_signal(signum, _frame):
-        if stop["signal"] is not None and signum == signal.SIGINT:
-            raise KeyboardInterrupt  # a second Ctrl-C: stop now (the map is still committed)
-        stop["signal"] = signum
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    bar = None
-    try:
-        progress = None
-        if sys.stderr.isatty():
-            from ltc_cli.recordings.open import open_recording
-
-            total = sum(len(open_recording(r, reader)) for r in recordings)
-            bar = click.progressbar(length=total, label="ingest", file=sys.stderr)
-            bar.__enter__()
-            progress = bar.update
-
-        def warn(msg):
-            click.echo(f"warning: {msg}", err=True)
-
-        summary = run_ingest(
-            list(recordings), map_path, cfg, reader=reader, calibration=calib,
-            checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=warn,
-            should_stop=lambda: stop["signal"] is not None, jobs=jobs,
-        )
-    finally:
-        if bar is not None:
-            bar.__exit__(None, None, None)
-        for s, h in old.items():
-            signal.signal(s, h)
+        cfg = load_config(config_file, sets)
+        if detector:
+            cfg["detector"]["name"] = detector
+        if metric:
+            cfg["association"]["metric"] = metric
+        if policy:
+            cfg["maintenance"]["policy"] = policy
+        calib = load_calibration(calibration) if calibration else None
+        with _progress("ingest", lambda: count_frames(recordings, reader)) as progress:
+            summary = run_ingest(
+                list(recordings), map_path, cfg, reader=reader, calibration=calib,
+                checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=_warn,
+                should_stop=lambda: stop["signal"] is not None, jobs=jobs, revisit=revisit,
+            )
+    visit = f"visit {summary.visit}; " if summary.visit > 1 else ""
     line = (
         f"{map_path}: {_plural(summary.frames_done, 'frame')} ingested, {summary.frames_skipped} skipped, "
         f"{summary.frames_already} already in the map; objects {summary.created} created, "
         f"{summary.merged} merged, {summary.removed} removed; {summary.objects} in the map; "
-        f"{summary.seconds:.1f} s"
+        f"{visit}{summary.seconds:.1f} s"
     )
     if summary.interrupted:
         click.echo(f"{line} (interrupted: run the same command again to resume)")
         sys.exit(130 if stop["signal"] == signal.SIGINT else 143)
     click.echo(line)
+    if summary.frames_done == 0 and summary.frames_skipped > 0 and summary.frames_already == 0:
+        raise click.ClickException(
+            f"{', '.join(recordings)}: no frame could be mapped, all {summary.frames_skipped} were bad "
+            f"(see the warnings); {map_path} is unchanged")
 
 
 @cli.command()
@@ -121,7 +125,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
 def info(map_path, fmt):
     """Summarise a map: classes, objects, sessions, frames."""
     from ltc_cli.map.model import ACTIVE, MERGED, REMOVED
-    from ltc_cli.map.store import load_map
+    from ltc_cli.map.store import FORMAT, VERSION, load_map
 
     smap = load_map(map_path)
     t = smap.objects
@@ -129,7 +133,8 @@ def info(map_path, fmt):
     per_class = Counter(smap.classes[int(i)] for i in t.scores[active, :-1].argmax(axis=1)) if len(active) else Counter()
     doc = {
         "map": str(map_path),
-        "format_version": 1,
+        "format": FORMAT,
+        "format_version": VERSION,
         "classes": smap.classes,
         "objects": {"active": int(len(active)), "removed": int((t.status == REMOVED).sum()),
                     "merged": int((t.status == MERGED).sum())},
@@ -138,6 +143,7 @@ def info(map_path, fmt):
         "events": len(smap.events),
         "sessions": [
             {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped", "v_other")}
+            | {"visit": max(1, int(s.get("visit") or 0))}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
             for s in smap.sessions
         ],
@@ -148,7 +154,7 @@ def info(map_path, fmt):
         click.echo(json.dumps(doc, indent=2))
         return
     o = doc["objects"]
-    click.echo(f"map          {map_path}  (ltc-map v1, created {smap.created})")
+    click.echo(f"map          {map_path}  ({FORMAT} v{VERSION}, created {smap.created})")
     click.echo(f"classes      {len(smap.classes)}: {', '.join(smap.classes)}")
     click.echo(f"objects      {o['active']} active, {o['removed']} removed, {o['merged']} merged")
     for name, n in doc["per_class"].items():
@@ -156,7 +162,8 @@ def info(map_path, fmt):
     click.echo(f"frames       {doc['frames']} ingested; {doc['events']} events logged")
     click.echo(f"sessions     {len(smap.sessions)}")
     for i, s in enumerate(doc["sessions"]):
-        click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped)  "
+        visit = f"  visit {s['visit']}" if s["visit"] > 1 else ""
+        click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped){visit}  "
                    f"{s['detector']}/{s['metric']}/{s['policy']} v_other={s['v_other']:.3g}  {', '.join(s['sources'])}")
     click.echo(f"{map_path}: {o['active']} objects of {len(per_class)} classes from {len(smap.frame_keys)} frames in {len(smap.sessions)} sessions")
 
@@ -362,32 +369,19 @@ def evaluate(map_path, gt_path, prev_path, max_distance, fmt):
 @click.option("--table", is_flag=True, help="Print the per-class figures before the summary.")
 def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, table):
     """Measure a detector on RECORDING's ground-truth instance masks; write v_Other and the figures."""
-    from ltc_cli.tools.calibrate import calibrate, write_calibration
+    from ltc_cli.recordings.open import count_frames
+    from ltc_cli.tools.calibrate import calibrate
+    from ltc_cli.tools.calibration_file import write_calibration
 
     cfg = load_config(config_file, sets)
     if detector:
         cfg["detector"]["name"] = detector
-    bar = None
-    try:
-        progress = None
-        if sys.stderr.isatty():
-            from ltc_cli.recordings.open import open_recording
-
-            bar = click.progressbar(length=len(open_recording(recording, reader)), label="calibrate", file=sys.stderr)
-            bar.__enter__()
-            progress = bar.update
-
-        def warn(msg):
-            click.echo(f"warning: {msg}", err=True)
-
+    with _progress("calibrate", lambda: count_frames([recording], reader)) as progress:
         cal = calibrate(
             recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader,
             min_visible_pixels=cfg["maintenance"]["min_visible_pixels"], min_pixels=min_pixels,
-            iou_threshold=iou_threshold, progress=progress, warn=warn,
+            iou_threshold=iou_threshold, progress=progress, warn=_warn,
         )
-    finally:
-        if bar is not None:
-            bar.__exit__(None, None, None)
     doc = write_calibration(cal, output)
     if table:
         click.echo(f"{'class':<16}{'inst':>6}{'det':>6}{'TP':>6}{'FP':>6}{'FN':>6} {'recall':>7} {'precision':>9} {'v_other':>7}")

@@ -1,18 +1,36 @@
-"""The one configuration of ltc: defaults.yaml, then a user file, then ``--set key=value``."""
+"""The one configuration of ltc: defaults.yaml, then a user file, then ``--set key=value``.
+
+The merged settings are checked against ``config.schema.json`` (every key, its type and range), so
+an unknown key, a wrong type, or a value out of range (negative, NaN, a zero cell size) is one
+:class:`ConfigError` line naming the key and where its value came from, before any work starts.
+
+Settings are a plain nested dict, read as ``cfg["section"]["key"]``. Every function here returns a
+new one that shares nothing with its inputs, so a caller's dict is never written into: ingest builds
+its own effective copy (:func:`settings_from`) rather than editing the one it was given.
+
+Merging: a section of fixed keys (``modeling``) is merged key by key. A free mapping (per-class
+tables such as ``modeling.class_depth``, the detector's ``options``) is replaced whole by a file, so
+``{}`` in a file empties it, while each ``--set`` adds or replaces one key of it.
+"""
 
 from __future__ import annotations
 
 import copy
+import difflib
+import json
+import math
+from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
+import jsonschema
 import yaml
 
 from ltc_cli.errors import ConfigError
 
-# Keys whose value is a free-form mapping (plugin options) or may be null.
-_FREE = {("detector", "options"), ("modeling", "class_depth"), ("maintenance", "v_other_per_class")}
-_NULLABLE = {("integration", "max_weight"), ("map", "classes"), ("maintenance", "min_visible_fraction"), ("association", "containment"), ("association", "containment_other_class"), ("modeling", "edge_jump"), ("association", "other_class_volume_ratio"), ("association", "partial_adjoin_gap")}
+SCHEMA_FILE = "config.schema.json"
+# Keywords whose failure is described from the schema ("must be a number >= 0, got -3").
+_SHAPE_KEYWORDS = {"type", "enum", "minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"}
 
 
 def defaults() -> dict:
@@ -20,52 +38,182 @@ def defaults() -> dict:
     return yaml.safe_load(text)
 
 
-def _check_and_merge(base: dict, update: dict, where: str, trail: tuple = (), replace: bool = True) -> None:
-    if not isinstance(update, dict):
-        raise ConfigError(f"{'.'.join(trail) or 'top level'} must be a mapping", where)
+@lru_cache(maxsize=None)
+def schema() -> dict:
+    """The settings schema (draft 2020-12), shipped beside defaults.yaml."""
+    return json.loads(resources.files("ltc_cli").joinpath(SCHEMA_FILE).read_text())
+
+
+def _is_finite_number(checker, value) -> bool:
+    # jsonschema counts NaN and inf as numbers, and NaN passes every ``minimum`` (comparisons with
+    # NaN are false), so a NaN threshold would slip through: in ltc's settings a number is finite.
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
+_Validator = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator,
+    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine("number", _is_finite_number),
+)
+
+
+# -- walking the schema ---------------------------------------------------------------------------
+
+def _resolve(node: dict) -> dict:
+    """``node`` with a local ``$ref`` (``#/$defs/NAME``) replaced by its target (sibling keys win)."""
+    while "$ref" in node:
+        target = schema()["$defs"][node["$ref"].rsplit("/", 1)[-1]]
+        node = {**target, **{k: v for k, v in node.items() if k != "$ref"}}
+    return node
+
+
+def _child(node: dict | None, key) -> dict | None:
+    """The schema of ``key`` inside ``node``: a fixed key, a free mapping's value, or a list item."""
+    if node is None:
+        return None
+    if isinstance(key, int):
+        items = node.get("items")
+        return _resolve(items) if isinstance(items, dict) else None
+    if key in node.get("properties", {}):
+        return _resolve(node["properties"][key])
+    extra = node.get("additionalProperties")
+    return _resolve(extra) if isinstance(extra, dict) else None
+
+
+def _node_at(path) -> dict | None:
+    node = _resolve(schema())
+    for key in path:
+        node = _child(node, key)
+    return node
+
+
+def _dotted(path) -> str:
+    out = ""
+    for key in path:
+        out += f"[{key}]" if isinstance(key, int) else (f".{key}" if out else str(key))
+    return out or "(top level)"
+
+
+# -- merging ----------------------------------------------------------------------------------------
+
+def _merge(base: dict, update: dict, node: dict | None, origin: str, replace: bool, trail: tuple,
+           origins: dict) -> None:
+    """Merge ``update`` into ``base`` in place; ``origins`` records where each key's value came from.
+
+    Unknown keys and values of the wrong shape are copied as they are: validation names them."""
     for key, value in update.items():
         path = trail + (key,)
-        dotted = ".".join(path)
-        if key not in base:
-            raise ConfigError(f"unknown setting {dotted!r}", where)
-        current = base[key]
-        if path in _FREE:
-            if not isinstance(value, dict):
-                raise ConfigError(f"{dotted} must be a mapping", where)
-            # A file replaces a mapping setting whole (so {} empties it); each --set adds one key.
-            base[key] = dict(value) if replace else {**current, **value}
-        elif isinstance(current, dict):
-            _check_and_merge(current, value, where, path, replace)
-        else:
-            base[key] = _coerce(current, value, path, where)
+        origins[path] = origin
+        sub = _child(node, key) if isinstance(key, str) else None
+        current = base.get(key)
+        if sub is not None and isinstance(value, dict) and isinstance(current, dict):
+            if "properties" in sub:  # a section of fixed keys: merge key by key
+                _merge(current, value, sub, origin, replace, path, origins)
+                continue
+            if not replace:  # a free mapping given by --set: add its keys
+                base[key] = {**current, **copy.deepcopy(value)}
+                continue
+        base[key] = copy.deepcopy(value)
 
 
-def _coerce(current, value, path, where):
-    dotted = ".".join(path)
-    if value is None:
-        if path in _NULLABLE:
-            return None
-        raise ConfigError(f"{dotted} cannot be null", where)
-    if path in _NULLABLE and current is None:
+def _origin_of(path: tuple, origins: dict):
+    for n in range(len(path), 0, -1):
+        if path[:n] in origins:
+            return origins[path[:n]]
+    return None
+
+
+# -- validation -------------------------------------------------------------------------------------
+
+def _number(v) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _expected(node: dict, value) -> str:
+    """What ``node`` accepts, in words: 'a number between 0 and 1', 'an integer >= 1 or null'."""
+    if "enum" in node:
+        names = [str(v) for v in node["enum"]]
+        return "one of " + (", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else names[0])
+    types = node.get("type", [])
+    types = [types] if isinstance(types, str) else list(types)
+    words = []
+    for t in types:
+        if t == "number":
+            bad = isinstance(value, float) and not math.isfinite(value)
+            words.append("a finite number" if bad else "a number")
+        elif t != "null":
+            words.append({"integer": "an integer", "boolean": "true or false", "object": "a mapping",
+                          "array": "a list", "string": "a non-empty string" if node.get("minLength")
+                          else "a string"}.get(t, t))
+    text = " or ".join(words)
+    lo = (">=", node["minimum"]) if "minimum" in node else (">", node.get("exclusiveMinimum"))
+    hi = ("<=", node["maximum"]) if "maximum" in node else ("<", node.get("exclusiveMaximum"))
+    if lo[1] is not None and hi[1] is not None:
+        strict = " strictly" if lo[0] == ">" and hi[0] == "<" else ""
+        text += f"{strict} between {_number(lo[1])} and {_number(hi[1])}"
+    elif lo[1] is not None:
+        text += f" {lo[0]} {_number(lo[1])}"
+    elif hi[1] is not None:
+        text += f" {hi[0]} {_number(hi[1])}"
+    return text + (" or null" if "null" in types else "")
+
+
+def _describe(error) -> tuple[tuple, str]:
+    """(the key's path, one line) for a validation error."""
+    path = tuple(error.absolute_path)
+    node = _node_at(path) or {}
+    if error.validator == "additionalProperties":
+        known = list(node.get("properties", {}))
+        extra = sorted((k for k in error.instance if k not in known), key=str)[0]
+        hint = difflib.get_close_matches(str(extra), known, n=1)
+        path += (extra,)
+        dotted = _dotted(path)
+        return path, f"unknown setting {dotted!r}" + (f" (did you mean {_dotted(path[:-1] + (hint[0],))}?)"
+                                                        if hint else "")
+    if error.validator == "required":
+        missing = [k for k in node.get("required", []) if k not in error.instance][0]
+        path += (missing,)
+        return path, f"setting {_dotted(path)} is missing"
+    if error.validator in _SHAPE_KEYWORDS:
+        return path, f"setting {_dotted(path)}: must be {_expected(node, error.instance)}, got {error.instance!r}"
+    return path, f"setting {_dotted(path)}: {error.message}"
+
+
+def _coerce(value, node: dict | None):
+    """Numbers as the schema types them: 10.0 for an integer setting is 10, 1 for a number is 1.0."""
+    if node is None:
         return value
-    if isinstance(current, bool):
-        if not isinstance(value, bool):
-            raise ConfigError(f"{dotted} must be true or false, got {value!r}", where)
-        return value
-    if isinstance(current, (int, float)) and not isinstance(current, bool):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{dotted} must be a number, got {value!r}", where)
-        if isinstance(current, int) and not isinstance(current, bool) and float(value).is_integer():
-            return int(value)
+    if isinstance(value, dict):
+        return {k: _coerce(v, _child(node, k)) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_coerce(v, _child(node, i)) for i, v in enumerate(value)]
+    types = node.get("type", [])
+    types = [types] if isinstance(types, str) else types
+    if "integer" in types and isinstance(value, float):
+        return int(value)
+    if "number" in types and "integer" not in types and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
-    if isinstance(current, str):
-        if not isinstance(value, str):
-            raise ConfigError(f"{dotted} must be a string, got {value!r}", where)
-        return value
-    if isinstance(current, list) and not isinstance(value, list):
-        raise ConfigError(f"{dotted} must be a list", where)
     return value
 
+
+def validate_config(cfg: dict, origins: dict | None = None) -> dict:
+    """A checked copy of ``cfg`` (numbers typed as the schema says); ConfigError naming the first bad
+    key, and the file or ``--set`` item its value came from when ``origins`` says."""
+    origins = origins or {}
+    error = jsonschema.exceptions.best_match(_Validator(schema()).iter_errors(cfg))
+    if error is not None:
+        path, line = _describe(error)
+        raise ConfigError(line, _origin_of(path, origins))
+    m = cfg["modeling"]
+    if m["min_depth"] >= m["max_depth"]:
+        path = ("modeling", "min_depth")
+        raise ConfigError(f"setting modeling.min_depth: must be below modeling.max_depth ({_number(m['max_depth'])}), "
+                          f"got {m['min_depth']!r}",
+                          _origin_of(path, origins) or _origin_of(("modeling", "max_depth"), origins))
+    return _coerce(copy.deepcopy(cfg), _resolve(schema()))
+
+
+# -- building the settings --------------------------------------------------------------------------
 
 def parse_set(item: str) -> dict:
     """``a.b=value`` (value read as YAML) -> {"a": {"b": value}}."""
@@ -88,46 +236,45 @@ def parse_set(item: str) -> dict:
     return out
 
 
+def read_yaml(path, what: str):
+    """The YAML document in ``path`` (safe_load); ConfigError naming the file when it cannot be
+    read or parsed. ``what`` names the document in the message ("config", "calibration")."""
+    p = Path(path)
+    try:
+        return yaml.safe_load(p.read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read {what} ({exc.strerror})", p) from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{what} is not valid YAML ({str(exc).splitlines()[0]})", p) from None
+
+
+def _read_file(path) -> dict:
+    p = Path(path)
+    data = read_yaml(p, "config")
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError("the settings must be a mapping of sections (modeling:, association:, ...)", p)
+    return data
+
+
 def load_config(path=None, sets: list[str] = ()) -> dict:
-    """Defaults, overridden by a YAML file and then by ``--set`` items; unknown keys are errors."""
+    """Defaults, overridden by a YAML file and then by ``--set`` items, checked by the schema."""
     cfg = defaults()
+    root = _resolve(schema())
+    origins: dict = {}
     if path is not None:
-        p = Path(path)
-        try:
-            data = yaml.safe_load(p.read_text())
-        except OSError as exc:
-            raise ConfigError(f"cannot read config ({exc.strerror})", p) from None
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"not valid YAML ({str(exc).splitlines()[0]})", p) from None
-        if data is not None:
-            _check_and_merge(cfg, data, str(p))
+        _merge(cfg, _read_file(path), root, str(path), True, (), origins)
     for item in sets:
-        _check_and_merge(cfg, parse_set(item), f"--set {item}", replace=False)
-    _validate(cfg)
-    return cfg
+        _merge(cfg, parse_set(item), root, f"--set {item}", False, (), origins)
+    return validate_config(cfg, origins)
 
 
-def _validate(cfg: dict) -> None:
-    m = cfg["modeling"]
-    if not 0 <= m["min_depth"] < m["max_depth"]:
-        raise ConfigError("modeling.min_depth must be >= 0 and below modeling.max_depth")
-    if m["clustering"] not in ("grid", "voxel", "dbscan"):
-        raise ConfigError("modeling.clustering must be grid, voxel or dbscan")
-    for key in ("eps", "min_extent", "max_points", "min_samples"):
-        if m[key] <= 0:
-            raise ConfigError(f"modeling.{key} must be positive")
-    v = cfg["maintenance"]["v_other"]
-    if not 0 < v < 1:
-        raise ConfigError("maintenance.v_other must be between 0 and 1")
-    for name, vc in cfg["maintenance"]["v_other_per_class"].items():
-        if isinstance(vc, bool) or not isinstance(vc, (int, float)) or not 0 < vc < 1:
-            raise ConfigError(f"maintenance.v_other_per_class.{name} must be between 0 and 1")
-    mw = cfg["integration"]["max_weight"]
-    if mw is not None and mw < 1:
-        raise ConfigError("integration.max_weight must be >= 1 or null")
-    if cfg["maintenance"]["ray_step"] < 1:
-        raise ConfigError("maintenance.ray_step must be >= 1")
-
-
-def copy_config(cfg: dict) -> dict:
-    return copy.deepcopy(cfg)
+def settings_from(config: dict, *overrides: dict) -> dict:
+    """A checked copy of ``config`` with each partial mapping of ``overrides`` merged in as a file
+    would be (a calibration's v_Other, say); ``config`` itself is left as it was."""
+    cfg = copy.deepcopy(config)
+    root = _resolve(schema())
+    for update in overrides:
+        _merge(cfg, update, root, "", True, (), {})
+    return validate_config(cfg)

@@ -15,7 +15,7 @@ import ltc_cli.tools.simulate as sim
 from ltc_cli.recordings import rle
 from ltc_cli.tools.calibrate import calibrate, match_frame, scaled_min_pixels, write_calibration
 from ltc_cli.cli import cli
-from ltc_cli.ingest.session import load_calibration
+from ltc_cli.tools.calibration_file import load_calibration
 from ltc_cli.map.store import load_map
 from ltc_cli.validation import validate
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from click.testing import CliRunner
 
 from ltc_cli.cli import cli
@@ -93,6 +94,15 @@ def ltc_process(*args, env_extra=None):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def wait_for_file(path, proc, timeout=60):
+    """Poll until ``proc`` creates ``path`` (its ready signal); fail if it ends or times out first."""
+    deadline = time.monotonic() + timeout
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "no ready signal"
+        time.sleep(0.01)
+
+
 def frames_in(path):
     try:
         return len(load_map(path).frame_keys)
@@ -133,9 +143,10 @@ def test_sigkill_part_way_then_resume_gives_the_same_map(tmp_path):
 def test_sigterm_commits_and_exits(tmp_path):
     rec = write_recording(tmp_path / "rec", cam_ys=tuple(np.linspace(1.5, -1.5, 12)))
     m = tmp_path / "map.h5"
-    env = {"LTC_PLUGINS": "tests.slow_detector", "LTC_TEST_DELAY": "0.2"}
+    ready = tmp_path / "ready"
+    env = {"LTC_PLUGINS": "tests.slow_detector", "LTC_TEST_DELAY": "0.2", "LTC_TEST_READY": str(ready)}
     p = ltc_process("ingest", rec, "--map", m, "--detector", "slow-recorded", "--checkpoint-every", "0", env_extra=env)
-    time.sleep(2.0)
+    wait_for_file(ready, p)  # the first frame is being detected: the handlers are in place
     p.send_signal(signal.SIGTERM)
     out, err = p.communicate(timeout=60)
     assert p.returncode == 143, err
@@ -219,10 +230,29 @@ def test_bad_frame_gives_one_clear_line_and_never_changes_the_map(lap1, tmp_path
             assert r.exit_code == 1
             assert len(lines) == 1 and str(culprit) in lines[0] and "Traceback" not in r.output
         else:
-            assert r.exit_code == 0
-            assert len(lines) == 1 and lines[0].startswith("warning: skipped frame 000000") and str(culprit) in lines[0]
+            # Its only frame was bad, so the run mapped nothing: the warning, then one error line.
+            assert r.exit_code == 1
+            assert len(lines) == 2 and lines[0].startswith("warning: skipped frame 000000") and str(culprit) in lines[0]
+            assert "no frame could be mapped" in lines[1] and str(bad) in lines[1]
             assert "1 skipped" in r.stdout
         assert m.read_bytes() == before
+
+
+def test_a_run_whose_every_frame_is_bad_fails_with_one_line(tmp_path):
+    """Camera 320x240 in recording.yaml, images 640x480: each of the 5 frames is skipped, nothing is
+    mapped, and that is an error (exit 1, one line after the warnings), the summary still printed."""
+    rec = write_recording(tmp_path / "rec")
+    meta = yaml.safe_load((rec / "recording.yaml").read_text())
+    meta["camera"].update(width=320, height=240)
+    (rec / "recording.yaml").write_text(yaml.safe_dump(meta))
+    m = tmp_path / "map.h5"
+    r = CliRunner().invoke(cli, ["ingest", str(rec), "--map", str(m)])
+    assert r.exit_code == 1
+    assert "0 frames ingested, 5 skipped, 0 already in the map" in r.stdout
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 6 and all(ln.startswith("warning: skipped frame") for ln in lines[:5])
+    assert lines[5] == f"Error: {rec}: no frame could be mapped, all 5 were bad (see the warnings); {m} is unchanged"
+    assert not m.exists()
 
 
 @pytest.mark.parametrize("text", ["format: ltc-recording/1\ncamera: [1, 2\n", "format: ltc-recording/1\ncamera: {width: 640}\ndepth: {scale: 1000}\n", "just a string\n"])

@@ -110,7 +110,7 @@ def test_reader_refuses_a_bad_recording_yaml(tmp_path):
 
 
 def test_calibration_loader_refuses_a_bad_file(tmp_path):
-    from ltc_cli.ingest.session import load_calibration
+    from ltc_cli.tools.calibration_file import load_calibration
 
     p = tmp_path / "calibration.yaml"
     p.write_text(CALIBRATION.replace("v_other: 0.42", "v_other: 1.2"))

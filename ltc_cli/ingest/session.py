@@ -13,6 +13,11 @@ and work still pending when the run stops (or fails) is cancelled and discarded.
 image decoding, zlib, numpy and onnxruntime release the GIL. A detector's ``detect`` is called from
 one thread at a time unless the detector declares ``thread_safe = True`` (then up to ``jobs`` at
 once); loading frames always runs in parallel.
+
+``revisit`` ingests recordings that are already in the map again, as a new session: the same route
+driven again. Each session has a visit number (1 for a recording's first ingest); frames of visit v > 1
+are keyed ``IDENTITY@v/FRAME`` instead of ``IDENTITY/FRAME``, so they do not collide with an earlier
+visit's while an interrupted revisit still finds its own frames and resumes.
 """
 
 from __future__ import annotations
@@ -25,18 +30,21 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import yaml
 
 from ltc_cli import __version__, plugins
+from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.prefetch import Prefetch, load_and_detect
+from ltc_cli.map.model import SemanticMap
+from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
 from ltc_cli.pipeline.mapper import Mapper
-from ltc_cli.map.model import SemanticMap
-from ltc_cli.validation import validate
-from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.recordings.open import open_recording
+from ltc_cli.tools.calibration_file import calibration_settings, load_calibration
+from ltc_cli.types import Recording
+
+STAGES = ("load", "detect", "modeling", "association", "integration", "maintenance", "merge")
 
 
 @dataclass
@@ -53,26 +61,75 @@ class IngestSummary:
     seconds: float = 0.0
     interrupted: bool = False
     session: int = 0
+    visit: int = 1
     stage_seconds: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return asdict(self)
 
 
+def _ignore(message: str) -> None:
+    pass
+
+
+def _never() -> bool:
+    return False
+
+
+@dataclass
+class RunOptions:
+    """How a run goes (checkpoints, callbacks, threads), as opposed to what it maps."""
+
+    checkpoint_every: int = 50
+    strict: bool = False
+    jobs: int = 1
+    progress: Callable[[int], None] | None = None
+    warn: Callable[[str], None] = _ignore
+    should_stop: Callable[[], bool] = _never
+    on_frame: Callable | None = None
+
+    def tick(self) -> None:
+        if self.progress:
+            self.progress(1)
+
+
+@dataclass
+class RecordingSetup:
+    """One recording, made ready before the map is opened."""
+
+    recording: Recording
+    detector: object
+    R_up: np.ndarray  # (3, 3): rotates the recording's world so that z is up
+    floor_z: float | None  # in the z-up frame; None when not estimated
+    depth_range: tuple[float, float]  # the recording's, within the settings' modeling range
+
+    @property
+    def T_up(self) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = self.R_up
+        return T
+
+
+@dataclass
+class Plan:
+    """Everything an ingest decides before it touches the map."""
+
+    settings: dict  # the effective settings (the caller's config with the calibration applied)
+    calibration: dict | None
+    setups: list[RecordingSetup]
+    metric: object
+    policy: object
+    revisit: bool = False
+
+
 def now_iso() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def load_calibration(path) -> dict:
-    p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"cannot read calibration ({exc.strerror})", p) from None
-    except yaml.YAMLError:
-        raise ConfigError("calibration is not valid YAML", p) from None
-    validate(doc, "calibration", p)
-    return doc
+def frame_key(identity: str, frame: str, visit: int) -> str:
+    """The map's key of a frame; a first visit keeps the plain key that maps made before
+    ``--revisit`` hold, so they resume and skip as before."""
+    return f"{identity}/{frame}" if visit <= 1 else f"{identity}@{visit}/{frame}"
 
 
 def ingest(
@@ -90,81 +147,98 @@ def ingest(
     should_stop: Callable[[], bool] | None = None,
     on_frame: Callable | None = None,
     jobs: int = 1,
+    revisit: bool = False,
 ) -> IngestSummary:
     """Ingest recordings into the map at ``map_path`` (created when it does not exist).
 
     Frames already in the map (by recording identity and frame id) are skipped, so re-running an
-    interrupted ingest resumes it, and re-running a finished one changes nothing. ``jobs`` > 1
-    loads and detects frames ahead in that many threads; the map is the same (module docstring).
+    interrupted ingest resumes it, and re-running a finished one changes nothing. ``revisit`` maps
+    the recordings again as a new session, and resumes such a session when it was interrupted.
+    ``jobs`` > 1 loads and detects frames ahead in that many threads; the map is the same (module
+    docstring). ``config`` is checked against the settings schema and never written into.
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ConfigError(f"jobs must be an integer >= 1, not {jobs!r}")
-    warn = warn or (lambda msg: None)
-    should_stop = should_stop or (lambda: False)
     t_start = time.perf_counter()
     map_path = Path(map_path)
-    if calibration is not None:
-        config["maintenance"]["v_other"] = float(calibration["v_other"])
-        config["maintenance"]["v_other_per_class"] = {
-            name: float(stats["v_other"]) for name, stats in (calibration.get("per_class") or {}).items()
-            if isinstance(stats, dict) and stats.get("v_other") is not None
-        }
-
+    opts = RunOptions(checkpoint_every=checkpoint_every, strict=strict, jobs=jobs, progress=progress,
+                      warn=warn or _ignore, should_stop=should_stop or _never, on_frame=on_frame)
+    settings = settings_from(config, *([calibration_settings(calibration)] if calibration is not None else []))
     # Everything that can be checked before the map is touched is checked first.
-    recordings = [open_recording(p, reader, reader_options) for p in recording_paths]
-    metric_name = config["association"]["metric"]
-    policy_name = config["maintenance"]["policy"]
-    metric = plugins.get("metrics", metric_name).factory(config["association"])
-    policy = plugins.get("policies", policy_name).factory(config["maintenance"])
-    det_name = config["detector"]["name"]
-    det_factory = plugins.get("detectors", det_name).factory
-    detectors = [det_factory(rec, dict(config["detector"]["options"])) for rec in recordings]
-    setups = [frame_setup_for(rec) for rec in recordings]
-    ups = [R for R, _ in setups]
-    floors = [z for _, z in setups]
+    plan = _plan([open_recording(p, reader, reader_options) for p in recording_paths], settings, calibration,
+                 revisit)
 
     lock = MapLock(map_path).acquire()
     try:
         if map_path.exists():
             smap = load_map(map_path)
         else:
-            classes = config["map"]["classes"] or recordings[0].classes or detectors[0].classes
+            first = plan.setups[0]
+            classes = settings["map"]["classes"] or first.recording.classes or first.detector.classes
             if not classes:
                 raise ConfigError("no class list: give map.classes, or a recording with classes")
             smap = SemanticMap.new(classes)
             smap.created = now_iso()
-            smap.up_rotation = ups[0]
-        summary = _run(smap, map_path, config, recordings, detectors, ups, floors, metric, policy, calibration,
-                       checkpoint_every, strict, progress, warn, should_stop, on_frame, jobs)
+            smap.up_rotation = first.R_up
+        summary = _run(smap, map_path, plan, opts)
     finally:
         lock.release()
     summary.seconds = time.perf_counter() - t_start
     return summary
 
 
-def _session_row(smap, config, recordings, ups, floors, calibration) -> tuple[int, dict]:
-    sources = [str(Path(r.path).resolve()) for r in recordings]
+def _plan(recordings: list[Recording], settings: dict, calibration, revisit: bool) -> Plan:
+    """Plugins and per-recording set-up (up axis, floor, depth range), before the map is opened."""
+    metric = plugins.get("metrics", settings["association"]["metric"]).factory(settings["association"])
+    policy = plugins.get("policies", settings["maintenance"]["policy"]).factory(settings["maintenance"])
+    det_factory = plugins.get("detectors", settings["detector"]["name"]).factory
+    detectors = [det_factory(rec, dict(settings["detector"]["options"])) for rec in recordings]
+    m_cfg = settings["modeling"]
+    setups = []
+    for rec, det in zip(recordings, detectors):
+        R_up, floor_z = frame_setup_for(rec)
+        lo, hi = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
+        depth_range = (max(lo, m_cfg["min_depth"]), min(hi, m_cfg["max_depth"]))
+        setups.append(RecordingSetup(rec, det, R_up, floor_z, depth_range))
+    return Plan(settings, calibration, setups, metric, policy, revisit)
+
+
+def _visit_of(row: dict) -> int:
+    return max(1, int(row.get("visit") or 0))  # rows written before --revisit hold 0: a first visit
+
+
+def _session_row(smap: SemanticMap, plan: Plan) -> tuple[int, dict]:
+    recordings = [s.recording for s in plan.setups]
     identities = [r.identity for r in recordings]
     last = smap.sessions[-1] if smap.sessions else None
     # An interrupted session over the same recordings is resumed, not started anew, so a resumed
-    # ingest ends in exactly the map an uninterrupted one makes.
-    if last is not None and last["status"] != "complete" and json.loads(last["recordings"]) == identities:
+    # ingest ends in exactly the map an uninterrupted one makes. A plain run resumes first visits
+    # only (so it never adds frames to a revisit); --revisit resumes whichever visit was cut short.
+    if (last is not None and last["status"] != "complete" and json.loads(last["recordings"]) == identities
+            and (plan.revisit or _visit_of(last) == 1)):
         last["status"] = "running"
+        last["visit"] = _visit_of(last)
         return len(smap.sessions) - 1, last
+    visit = 1
+    if plan.revisit:
+        mine = set(identities)
+        visit += max((_visit_of(s) for s in smap.sessions if mine & set(json.loads(s["recordings"]))), default=0)
+    config = plan.settings
     settings = {k: v for k, v in config.items() if k != "detector"}
+    if plan.calibration is not None:
+        settings["calibration"] = plan.calibration
     row = {
         "started": now_iso(), "finished": "", "status": "running",
-        "sources": json.dumps(sources), "recordings": json.dumps(identities),
+        "sources": json.dumps([str(Path(r.path).resolve()) for r in recordings]),
+        "recordings": json.dumps(identities),
         "readers": json.dumps([r.format for r in recordings]),
         "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
-        "frames_done": 0, "frames_skipped": 0,
-        "up_rotation": json.dumps([np.asarray(u).round(9).tolist() for u in ups]),
-        "floor_z": json.dumps([None if z is None else round(float(z), 6) for z in floors]),
+        "frames_done": 0, "frames_skipped": 0, "visit": visit,
+        "up_rotation": json.dumps([np.asarray(s.R_up).round(9).tolist() for s in plan.setups]),
+        "floor_z": json.dumps([None if s.floor_z is None else round(float(s.floor_z), 6) for s in plan.setups]),
     }
-    if calibration is not None:
-        row["settings"] = json.dumps({**settings, "calibration": calibration})
     smap.sessions.append(row)
     return len(smap.sessions) - 1, row
 
@@ -182,50 +256,43 @@ def _report_warnings(frame, warned: set, strict: bool, warn) -> None:
         warn(str(w))
 
 
-def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, policy, calibration,
-         checkpoint_every, strict, progress, warn, should_stop, on_frame, jobs=1) -> IngestSummary:
-    session, row = _session_row(smap, config, recordings, ups, floors, calibration)
-    mapper = Mapper(smap, config, metric, policy, session=session)
-    summary = IngestSummary(session=session)
-    stage = {k: 0.0 for k in ("load", "detect", "modeling", "association", "integration", "maintenance", "merge")}
+def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> IngestSummary:
+    session, row = _session_row(smap, plan)
+    mapper = Mapper(smap, plan.settings, plan.metric, plan.policy, session=session)
+    summary = IngestSummary(session=session, visit=row["visit"])
+    stage = {k: 0.0 for k in STAGES}
     since_commit = 0
     error: BaseException | None = None
     ahead: Prefetch | None = None
     try:
-        for rec, det, R_up, floor_z in zip(recordings, detectors, ups, floors):
+        for setup in plan.setups:
+            rec, det = setup.recording, setup.detector
             mapper_classes = ClassMapper(det.classes, smap.classes)
-            T_up = np.eye(4)
-            T_up[:3, :3] = R_up
-            m_cfg = config["modeling"]
-            depth_range = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
-            depth_range = (max(depth_range[0], m_cfg["min_depth"]), min(depth_range[1], m_cfg["max_depth"]))
-            if jobs > 1:
-                ahead = Prefetch(rec.frames, [f"{rec.identity}/{r.key}" for r in rec.frames],
-                                  smap.frame_keys, det, jobs)
+            T_up = setup.T_up
+            keys = [frame_key(rec.identity, ref.key, summary.visit) for ref in rec.frames]
+            if opts.jobs > 1:
+                ahead = Prefetch(rec.frames, keys, smap.frame_keys, det, opts.jobs)
             fetch = ahead.take if ahead is not None else load_and_detect(det)
             warned: set = set()  # once-keys of this recording's frame warnings already reported
-            for ref in rec.frames:
-                if should_stop():
+            for ref, key in zip(rec.frames, keys):
+                if opts.should_stop():
                     summary.interrupted = True
                     break
-                key = f"{rec.identity}/{ref.key}"
                 if key in smap.frame_keys:
                     summary.frames_already += 1
-                    if progress:
-                        progress(1)
+                    opts.tick()
                     continue
                 try:
                     frame, dets, t0, t1, t2 = fetch(ref)
                 except FrameError as exc:
-                    if strict:
+                    if opts.strict:
                         raise
-                    warn(f"skipped frame {ref.key}: {exc}")
+                    opts.warn(f"skipped frame {ref.key}: {exc}")
                     summary.frames_skipped += 1
                     row["frames_skipped"] += 1
-                    if progress:
-                        progress(1)
+                    opts.tick()
                     continue
-                _report_warnings(frame, warned, strict, warn)
+                _report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
                 stage["detect"] += t2 - t1
                 masks, vectors = [], []
@@ -236,8 +303,8 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
                         vectors.append(v)
                 res = mapper.process_frame(
                     ref.index, key, masks, vectors,
-                    frame.depth_m, T_up @ frame.T_world_camera, frame.intrinsics, depth_range,
-                    floor_z=floor_z,
+                    frame.depth_m, T_up @ frame.T_world_camera, frame.intrinsics, setup.depth_range,
+                    floor_z=setup.floor_z,
                 )
                 for k, v in res.timings.items():
                     stage[k] += v
@@ -250,11 +317,10 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
                 summary.removed += res.removed
                 summary.non_detections += res.non_detections
                 since_commit += 1
-                if on_frame:
-                    on_frame(summary)
-                if progress:
-                    progress(1)
-                if checkpoint_every and since_commit >= checkpoint_every:
+                if opts.on_frame:
+                    opts.on_frame(summary)
+                opts.tick()
+                if opts.checkpoint_every and since_commit >= opts.checkpoint_every:
                     save_map(smap, map_path)
                     since_commit = 0
             if ahead is not None:
@@ -262,7 +328,7 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
                 ahead = None
             if summary.interrupted:
                 break
-        k = config["maintenance"]["min_detections"]
+        k = plan.settings["maintenance"]["min_detections"]
         if not summary.interrupted and summary.frames_done > 0 and k > 1:
             summary.removed += mapper.prune_unconfirmed(k, -1, "end of session")
     except BaseException as exc:  # commit what is done, then let the error go on
@@ -282,4 +348,5 @@ def _run(smap, map_path, config, recordings, detectors, ups, floors, metric, pol
     return summary
 
 
-__all__ = ["ingest", "open_recording", "IngestSummary", "LtcError", "load_calibration"]
+__all__ = ["ingest", "open_recording", "IngestSummary", "LtcError", "load_calibration", "frame_key",
+           "RunOptions", "RecordingSetup", "Plan"]

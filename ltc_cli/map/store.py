@@ -32,6 +32,7 @@ SESSION_COLUMNS = {
     "started": "s", "finished": "s", "status": "s", "sources": "s", "recordings": "s",
     "readers": "s", "detector": "s", "metric": "s", "policy": "s", "settings": "s", "v_other": "f",
     "ltc_version": "s", "frames_done": "i", "frames_skipped": "i", "up_rotation": "s", "floor_z": "s",
+    "visit": "i",  # 1 for a recording's first ingest, n for its n-th (--revisit); 0 in older maps
 }
 
 
@@ -188,7 +189,7 @@ def save_map(smap: SemanticMap, path) -> None:
             eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=object), dtype=_STR)
         sg = f.create_group("sessions")
         for key, kind in SESSION_COLUMNS.items():
-            vals = [s.get(key) for s in smap.sessions]
+            vals = [s.get(key, "" if kind == "s" else 0) for s in smap.sessions]  # rows made before a column: empty
             if kind == "s":
                 vals = [v if isinstance(v, str) else json.dumps(v) for v in vals]
                 sg.create_dataset(key, data=np.array(vals, dtype=object), dtype=_STR)

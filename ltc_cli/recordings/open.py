@@ -22,3 +22,8 @@ def open_recording(path, reader: str | None = None, options: dict | None = None)
             return reg.factory.open(p, options or {})
     known = ", ".join(sorted(plugins.registry("readers")))
     raise RecordingError(f"no reader recognises this folder (installed readers: {known})", p)
+
+
+def count_frames(paths, reader: str | None = None) -> int:
+    """The number of frames of the recordings at ``paths`` (for a progress bar)."""
+    return sum(len(open_recording(p, reader)) for p in paths)
