@@ -414,7 +414,8 @@ def test_present_objects_deleted_by_maintenance(tmp_path):
     r = evaluate_map(load_map(path), gt)
     d = r["deleted_while_present"]
     # GT chair 1 (removed object 6) and couch 2 (removed objects 2 and 3); 4 objects present.
-    assert d == {"count": 2, "present": 4, "share": 0.5, "gt_ids": [1, 2], "map_ids": [2, 3, 6]}
+    assert d == {"count": 2, "present": 4, "share": 0.5, "gt_ids": [1, 2], "map_ids": [2, 3, 6],
+                 "lost_gt_ids": [2]}  # the chair was rebuilt (active object 1), the couch not
     assert (r["tp"], r["fp"], r["fn"]) == (1, 0, 3)  # removed objects are not in the map
     # Event dicts (as a JSON export would give) work as well.
     events = [{"kind": e.kind, "object_id": e.object_id, "detail": e.detail} for e in smap.events]

@@ -391,11 +391,14 @@ def evaluate_map(smap: SemanticMap, gt: dict, previous=None, **kw) -> dict:
     """Metrics of DESIGN.md section 8 for a map (see :func:`evaluate`; ``previous`` is one earlier
     lap's ground truth or a sequence of them, oldest first), plus ``deleted_while_present``: the
     ground-truth objects of this lap on which a map object stood that maintenance removed
-    (:func:`ltc_cli.tools.lap_history.deleted_while_present`, from the map's event log)."""
+    (:func:`ltc_cli.tools.lap_history.deleted_while_present`, from the map's event log), with
+    ``lost_gt_ids``: those of them that no map object stands on now (FN)."""
     res = evaluate(map_objects(smap), gt, previous_gt=previous, **kw)
     ids = [i for i in maintenance_removed_ids(smap.events) if 1 <= i <= smap.objects.n]
     removed = [as_eval_object(o) for o in map_objects(smap, np.array(ids, dtype=np.int64) - 1)]
-    res["deleted_while_present"] = deleted_while_present(
+    d = deleted_while_present(
         removed, _objects_and_changes(gt)[0], max_center_distance=kw.get("max_center_distance", 3.0)
     )
+    d["lost_gt_ids"] = sorted(set(d["gt_ids"]) & set(res["fn_ids"]))
+    res["deleted_while_present"] = d
     return res
