@@ -321,40 +321,27 @@ def _fmt(v, spec=".3f"):
 @cli.command()
 @click.argument("map_path", type=click.Path())
 @click.option("--ground-truth", "gt_path", required=True, type=click.Path(), help="ground_truth.json, or a recording folder holding one.")
-@click.option("--previous", "prev_path", type=click.Path(), help="The previous lap's ground truth, to count ghosts (default: the lap(N-1) folder beside a lapN recording).")
+@click.option("--previous", "prev_paths", multiple=True, type=click.Path(), help="An earlier lap's ground truth, to count ghosts; repeat for several laps, oldest first (default: the lap1..lap(N-1) folders beside a lapN recording).")
 @click.option("--max-distance", type=float, default=3.0, show_default=True, help="Largest centre distance of a match (m).")
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
-def evaluate(map_path, gt_path, prev_path, max_distance, fmt):
-    """Compare a map with ground-truth objects (precision, recall, F1, IoU, VIoU, ghosts)."""
+def evaluate(map_path, gt_path, prev_paths, max_distance, fmt):
+    """Compare a map with ground-truth objects (precision, recall, F1 at any overlap and at XY IoU
+    0.25 and 0.5, IoU, VIoU, duplicates, ghosts, objects deleted while present)."""
     from ltc_cli.tools.evaluate import evaluate_map
-    from ltc_cli.recordings.groundtruth import previous_lap, read_ground_truth
+    from ltc_cli.tools.evaluate_report import evaluation_summary, evaluation_table
+    from ltc_cli.recordings.groundtruth import earlier_laps, read_ground_truth
     from ltc_cli.map.store import load_map
 
     smap = load_map(map_path)
     gt = read_ground_truth(gt_path)
-    prev = read_ground_truth(prev_path) if prev_path else previous_lap(gt_path)
+    prev = [read_ground_truth(p) for p in prev_paths] if prev_paths else earlier_laps(gt_path)
     res = evaluate_map(smap, gt, prev, max_center_distance=max_distance)
     if fmt == "json":
         click.echo(json.dumps(res, indent=2, default=float))
     else:
-        head = f"{'':<14}{'TP':>5}{'FP':>5}{'FN':>5} {'precision':>9} {'recall':>7} {'recall*':>7} {'F1':>6} {'XY IoU':>7} {'VIoU':>6} {'pos err':>8} {'dup':>4} {'ghost':>5}"
-        click.echo(head)
-
-        def line(name, r, rs):
-            click.echo(f"{name:<14}{r['tp']:>5}{r['fp']:>5}{r['fn']:>5} {_fmt(r['precision']):>9} {_fmt(r['recall']):>7} "
-                       f"{_fmt(rs):>7} {_fmt(r['f1']):>6} {_fmt(r['mean_xy_iou']):>7} {_fmt(r['mean_viou']):>6} "
-                       f"{_fmt(r['mean_position_error']):>8} {r['duplicates']:>4} {r['ghosts']:>5}")
-
-        for name, r in sorted(res["per_class"].items()):
-            line(name[:13], r, None)
-        line("all", res, res["recall_seen"])
-        click.echo("recall* counts only the ground-truth objects the robot saw; position error in metres")
-    click.echo(
-        f"{map_path}: precision {_fmt(res['precision'])}, recall {_fmt(res['recall'])} "
-        f"(seen {_fmt(res['recall_seen'])}), F1 {_fmt(res['f1'])}, XY IoU {_fmt(res['mean_xy_iou'])}, "
-        f"{res['duplicates']} duplicates, {res['ghosts']} ghosts",
-        err=(fmt == "json"),
-    )
+        for ln in evaluation_table(res):
+            click.echo(ln)
+    click.echo(f"{map_path}: {evaluation_summary(res)}", err=(fmt == "json"))
 
 
 @cli.command("calibrate")

@@ -162,7 +162,8 @@ def test_precision_recall_f1_by_hand():
     assert chair["precision"] == 1.0 and chair["recall"] == 1.0
     tv = r["per_class"]["tv"]
     assert (tv["tp"], tv["fp"], tv["fn"]) == (0, 1, 1) and tv["mean_xy_iou"] is None
-    assert r["per_class"]["bed"]["recall"] == 0.0
+    # bed: one FP and no ground truth: recall 0/0 is undefined (None), precision 0/1 = 0.
+    assert r["per_class"]["bed"]["recall"] is None and r["per_class"]["bed"]["precision"] == 0.0
 
 
 def test_duplicate_counts_as_fp():
@@ -226,7 +227,7 @@ def test_seen_only_excludes_unseen_ground_truth():
     # A threshold above 0.
     gt[0]["seen_pixels"] = 50
     r = evaluate([], gt, seen_only=True, min_seen_pixels=100)
-    assert (r["fn"], r["ignored_gt"], r["recall"], r["precision"]) == (0, 3, 0.0, 0.0)
+    assert (r["fn"], r["ignored_gt"], r["recall"], r["precision"]) == (0, 3, None, None)
 
 
 def test_greedy_matching_is_one_to_one():
@@ -240,7 +241,7 @@ def test_greedy_matching_is_one_to_one():
 
 def test_empty_and_bad_inputs():
     r = evaluate([], [])
-    assert r["tp"] == r["fp"] == r["fn"] == 0 and r["precision"] == 0.0
+    assert r["tp"] == r["fp"] == r["fn"] == 0 and r["precision"] is None  # 0/0: undefined
     assert r["mean_xy_iou"] is None and r["per_class"] == {}
     with pytest.raises(LtcError):
         evaluate([{"id": 1, "class": "chair", "center": [0, 0], "yaw": 0, "size": [1, 1, 1]}], [])
@@ -248,3 +249,214 @@ def test_empty_and_bad_inputs():
         evaluate([{"id": 1, "center": [0, 0, 0], "yaw": 0, "size": [1, 1, 1]}], [])
     with pytest.raises(LtcError):
         evaluate([], [], max_center_distance=0)
+
+
+# ---------------------------------------------------------------------------------------------
+# IoU thresholds, ghosts of any earlier lap, objects deleted while present, ids kept, 0/0
+
+
+def _shapely_xy_iou(a, b):
+    """XY IoU of two _obj dicts with shapely (independent of ltc's clipping)."""
+    return _shapely_ious((a["center"], a["yaw"], a["size"]), (b["center"], b["yaw"], b["size"]))[0]
+
+
+def test_iou_thresholds_change_tp_counts_by_hand():
+    gt = [_obj(1, "chair", 0, 0), _obj(2, "chair", 5, 0), _obj(3, "chair", 10, 0),
+          _obj(4, "chair", 15, 0), _obj(5, "tv", 20, 0, seen_pixels=0)]
+    maps = [
+        _obj(11, "chair", 0, 0),  # exact: IoU 1
+        _obj(12, "chair", 5.5, 0),  # half shifted: 0.5 / 1.5 = 1/3
+        _obj(13, "chair", 10.7, 0),  # 0.3 / 1.7 = 0.176
+        _obj(14, "chair", 15, 0, yaw=np.pi / 4),  # turned 45 degrees: 1 / sqrt2
+        _obj(15, "tv", 20.6, 0.6),  # 0.16 / 1.84 = 0.087, on a tv the robot never saw
+    ]
+    ious = {m["id"]: _shapely_xy_iou(m, g) for m, g in zip(maps, gt)}
+    assert ious[12] == pytest.approx(1 / 3) and ious[13] == pytest.approx(0.3 / 1.7)
+    assert ious[14] == pytest.approx(1 / np.sqrt(2)) and ious[15] == pytest.approx(0.16 / 1.84)
+    r = evaluate(maps, gt)
+    assert r["iou_measure"] == "xy_iou" and set(r["at_iou"]) == {"0.25", "0.5"}
+    # Any overlap: all five match. IoU > 0.25: 11, 12, 14. IoU > 0.5: 11, 14.
+    for level, t, expect in ((r, 0.0, 5), (r["at_iou"]["0.25"], 0.25, 3), (r["at_iou"]["0.5"], 0.5, 2)):
+        assert sum(v > t for v in ious.values()) == expect  # shapely agrees with the hand values
+        assert (level["tp"], level["fp"], level["fn"]) == (expect, 5 - expect, 5 - expect)
+        assert level["precision"] == pytest.approx(expect / 5) and level["recall"] == pytest.approx(expect / 5)
+        assert level["f1"] == pytest.approx(expect / 5)
+    strict = r["at_iou"]["0.5"]
+    assert strict["mean_xy_iou"] == pytest.approx((1 + 1 / np.sqrt(2)) / 2)
+    assert sorted(strict["fn_ids"]) == [2, 3, 5]
+    assert strict["per_class"]["chair"]["tp"] == 2 and strict["per_class"]["tv"]["tp"] == 0
+    # recall over seen objects: the tv was never seen, so it is not an FN there.
+    assert r["recall_seen"] == pytest.approx(5 / 5)
+    assert r["at_iou"]["0.25"]["recall_seen"] == pytest.approx(3 / 4)
+    assert r["at_iou"]["0.5"]["recall_seen"] == pytest.approx(2 / 4)
+    assert r["at_iou"]["0.5"]["f1_seen"] == pytest.approx(2 * 2 / (2 * 2 + 3 + 2))
+    # Other levels on request.
+    r = evaluate(maps, gt, iou_thresholds=(0.1, 0.7))
+    assert r["at_iou"]["0.1"]["tp"] == 4 and r["at_iou"]["0.7"]["tp"] == 2
+
+
+def test_threshold_matches_are_the_any_overlap_matches_above_it():
+    """Re-matching with IoU > t as the candidate condition equals filtering the any-overlap
+    matches by IoU > t (greedy by IoU), on random crowded scenes."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        gt = [_obj(j, str(rng.integers(2)), *rng.uniform(0, 4, 2), yaw=float(rng.uniform(-1.5, 1.5)),
+                   size=rng.uniform(0.3, 1.2, 3)) for j in range(12)]
+        maps = [_obj(100 + i, str(rng.integers(2)), *rng.uniform(0, 4, 2), yaw=float(rng.uniform(-1.5, 1.5)),
+                     size=rng.uniform(0.3, 1.2, 3)) for i in range(12)]
+        r = evaluate(maps, gt)
+        for t, level in r["at_iou"].items():
+            above = [m for m in r["matches"] if m["xy_iou"] > float(t)]
+            assert level["tp"] == len(above)
+            assert level["fp"] == 12 - len(above) and level["fn"] == 12 - len(above)
+
+
+def _gt_doc(objects, changes=None, lap=1):
+    doc = {"format": "ltc-ground-truth/1", "lap": lap, "objects": objects}
+    if changes is not None:
+        doc["changes"] = changes
+    return doc
+
+
+def _three_laps():
+    """lap1: chair 1, plant 2, tv 3, chair 4; lap2: plant removed, chair 4 moved 2 m;
+    lap3: nothing changes but chair 4 goes back to its lap-1 place."""
+    lap1 = _gt_doc([_obj(1, "chair", 0, 0), _obj(2, "potted plant", 4, 0), _obj(3, "tv", 8, 0),
+                    _obj(4, "chair", 12, 0)], lap=1)
+    lap2 = _gt_doc([_obj(1, "chair", 0, 0), _obj(3, "tv", 8, 0), _obj(4, "chair", 14, 0)],
+                   {"moved": [4], "removed": [2], "added": []}, lap=2)
+    lap3 = _gt_doc([_obj(1, "chair", 0, 0), _obj(3, "tv", 8, 0), _obj(4, "chair", 12, 0)],
+                   {"moved": [4], "removed": [], "added": []}, lap=3)
+    maps = [
+        _obj(10, "chair", 0, 0),  # TP
+        _obj(11, "potted plant", 4, 0.1),  # the plant removed in lap 2, still mapped: ghost of lap 1
+        _obj(12, "tv", 8, 0),  # TP
+        _obj(13, "chair", 12, 0),  # chair 4 back at its lap-1 place: TP, not a ghost
+        _obj(14, "chair", 14.1, 0),  # chair 4's lap-2 place: ghost of lap 2
+    ]
+    return lap1, lap2, lap3, maps
+
+
+def test_ghost_of_any_earlier_lap():
+    lap1, lap2, lap3, maps = _three_laps()
+    r = evaluate(maps, lap3, previous_gt=[lap1, lap2])
+    assert (r["tp"], r["fp"], r["fn"]) == (3, 2, 0)
+    assert r["ghost_ids"] == [11, 14] and r["ghosts"] == 2 and r["earlier_laps"] == 2
+    assert r["ghost_ratio"] == pytest.approx(2 / 5) and r["duplicates"] == 0
+    # Only the previous lap (today's behaviour): the plant of lap 1 is a plain false positive.
+    r = evaluate(maps, lap3, previous_gt=lap2)
+    assert r["ghost_ids"] == [14] and r["earlier_laps"] == 1
+    assert 11 in r["fp_ids"] and r["duplicate_ids"] == []
+    # Lists of objects work as laps too, and the changes are inferred from the boxes.
+    r = evaluate(maps, lap3["objects"], previous_gt=[lap1["objects"], lap2["objects"]])
+    assert r["ghost_ids"] == [11, 14]
+
+
+def test_former_places_tolerance():
+    from ltc_cli.tools.evaluate import as_eval_object
+    from ltc_cli.tools.lap_history import former_places
+
+    before = [as_eval_object(_obj(1, "chair", 0, 0)), as_eval_object(_obj(2, "chair", 5, 0))]
+    now = [as_eval_object(_obj(1, "chair", 0.08, 0)), as_eval_object(_obj(2, "chair", 5.15, 0))]
+    # Chair 1 moved 8 cm (still there), chair 2 15 cm (a former place).
+    assert [o.id for o in former_places(now, [before])] == [2]
+    # A move the ground truth lists counts even when small.
+    assert [o.id for o in former_places(now, [before], {"moved": [1]})] == [1, 2]
+
+
+def test_earlier_laps_are_found_beside_the_recording(tmp_path):
+    import json
+
+    from ltc_cli.recordings.groundtruth import earlier_laps
+
+    for k, doc in enumerate(_three_laps()[:3], start=1):
+        (tmp_path / f"lap{k}").mkdir()
+        (tmp_path / f"lap{k}" / "ground_truth.json").write_text(json.dumps(doc))
+    laps = earlier_laps(tmp_path / "lap3")
+    assert [d["lap"] for d in laps] == [1, 2]
+    assert [d["lap"] for d in earlier_laps(tmp_path / "lap2" / "ground_truth.json")] == [1]
+    assert earlier_laps(tmp_path / "lap1") == [] and earlier_laps(tmp_path) == []
+
+
+def _removal_map():
+    """A map whose event log has maintenance removals (detail "other ...") and an unconfirmed one."""
+    from ltc_cli.map.model import REMOVED, Event, SemanticMap
+    from tests.sample_maps import add
+
+    smap = SemanticMap.new(["chair", "couch", "tv"])
+    add(smap, [0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.8)  # 1: active, on GT chair 1
+    for center, cls in (([3.0, 0, 0.5], "couch"),  # 2: on GT couch 2 (IoU 0.8 / 1.2)
+                        ([3.2, 0, 0.5], "couch"),  # 3: rebuilt and deleted again on couch 2
+                        ([6.0, 0, 0.5], "tv"),  # 4: unconfirmed removal on GT tv 3: not maintenance
+                        ([9.0, 0, 0.5], "chair"),  # 5: removed where nothing is now: rightly
+                        ([0.3, 0, 0.5], "chair"),  # 6: an earlier chair 1, deleted and rebuilt as 1
+                        ([3.0, 0.1, 0.5], "tv")):  # 7: a tv on the couch: another class
+        add(smap, center, 0.0, [1, 1, 1], cls, 0.4, status=REMOVED)
+    for oid in (2, 3, 5, 6, 7):
+        smap.events.append(Event(1, 5, "lap2/000005", "removed", oid, 0,
+                                 "other 0.510 > chair 0.400 after 6 non-detections and 3 detections"))
+    smap.events.append(Event(1, 6, "lap2/000006", "removed", 4, 0,
+                             "unconfirmed: 1 detection(s) in the session that created it, fewer than 2"))
+    gt = _gt_doc([_obj(1, "chair", 0, 0), _obj(2, "couch", 3.1, 0), _obj(3, "tv", 6, 0),
+                  _obj(4, "chair", 20, 0)])
+    return smap, gt
+
+
+def test_present_objects_deleted_by_maintenance(tmp_path):
+    from ltc_cli.map.store import load_map, save_map
+    from ltc_cli.tools.evaluate import evaluate_map
+    from ltc_cli.tools.lap_history import maintenance_removed_ids
+
+    smap, gt = _removal_map()
+    assert maintenance_removed_ids(smap.events) == [2, 3, 5, 6, 7]
+    path = tmp_path / "m.h5"
+    save_map(smap, path)
+    r = evaluate_map(load_map(path), gt)
+    d = r["deleted_while_present"]
+    # GT chair 1 (removed object 6) and couch 2 (removed objects 2 and 3); 4 objects present.
+    assert d == {"count": 2, "present": 4, "share": 0.5, "gt_ids": [1, 2], "map_ids": [2, 3, 6],
+                 "lost_gt_ids": [2]}  # the chair was rebuilt (active object 1), the couch not
+    assert (r["tp"], r["fp"], r["fn"]) == (1, 0, 3)  # removed objects are not in the map
+    # Event dicts (as a JSON export would give) work as well.
+    events = [{"kind": e.kind, "object_id": e.object_id, "detail": e.detail} for e in smap.events]
+    assert maintenance_removed_ids(events) == [2, 3, 5, 6, 7]
+
+
+def test_ids_kept_from_two_hand_built_results():
+    from ltc_cli.tools.evaluate import ids_kept
+
+    def res(gt, matches):
+        return {"gt_objects": [{"id": i, "class": c, "center": [x, y, 0.5]} for i, c, x, y in gt],
+                "matches": [{"gt_id": g, "map_id": m} for g, m in matches]}
+
+    before = res([(1, "chair", 0, 0), (2, "couch", 3, 0), (3, "tv", 6, 0), (4, "chair", 9, 0),
+                  (5, "potted plant", 12, 0), (7, "cup", 15, 0)],
+                 [(1, 10), (2, 11), (3, 12), (5, 14), (7, 16)])
+    after = res([(1, "chair", 0.05, 0),  # unchanged (5 cm), same map id: kept
+                 (2, "couch", 3, 0),  # unchanged, a new map id: not kept
+                 (3, "tv", 6.5, 0),  # moved: left out
+                 (4, "chair", 9, 0),  # unchanged but unmapped before: no id to keep
+                 (5, "potted plant", 12, 0.02),  # unchanged, unmatched now (deleted): not kept
+                 (7, "bowl", 15, 0),  # another class under the same id: left out
+                 (8, "chair", 18, 0)],  # new
+                [(1, 10), (2, 20), (3, 12), (4, 13), (8, 21)])
+    k = ids_kept(before, after)
+    assert k == {"unchanged": 4, "tracked": 3, "kept": 1, "share": pytest.approx(1 / 3), "lost_gt_ids": [2, 5]}
+    assert ids_kept(res([], []), after)["share"] is None
+    # On real evaluation results: the same map after two laps keeps every id.
+    lap1, lap2, _, maps = _three_laps()
+    r1, r2 = evaluate(maps, lap1), evaluate(maps, lap2, previous_gt=lap1)
+    k = ids_kept(r1, r2)
+    assert (k["unchanged"], k["tracked"], k["kept"]) == (2, 2, 2)  # chair 1 and tv 3
+
+
+def test_zero_over_zero_is_none():
+    gt = [_obj(1, "chair", 0, 0), _obj(2, "tv", 5, 0)]
+    r = evaluate([], gt)
+    assert r["precision"] is None and r["recall"] == 0.0 and r["f1"] == 0.0
+    assert r["duplicate_ratio"] is None and r["ghost_ratio"] is None
+    assert r["recall_seen"] is None  # the ground truth does not say what was seen
+    for level in r["at_iou"].values():
+        assert level["precision"] is None and level["recall"] == 0.0
+    r = evaluate([_obj(1, "chair", 0, 0)], [])
+    assert r["precision"] == 0.0 and r["recall"] is None and r["f1"] == 0.0

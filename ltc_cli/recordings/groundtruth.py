@@ -41,3 +41,20 @@ def previous_lap(path) -> dict | None:
     return None
 
 
+
+
+def earlier_laps(path) -> list[dict]:
+    """The ground truth of every earlier lap of a ``.../lapN`` recording (as ltc simulate writes
+    them): the ``lap1`` .. ``lap(N-1)`` siblings that hold a ground_truth.json, oldest first; [] for
+    any other folder."""
+    p = Path(path)
+    folder = p if p.is_dir() else p.parent
+    name = folder.name
+    if not (name.startswith("lap") and name[3:].isdigit()):
+        return []
+    laps = []
+    for k in range(1, int(name[3:])):
+        sibling = folder.parent / f"lap{k}"
+        if (sibling / "ground_truth.json").is_file():
+            laps.append(read_ground_truth(sibling))
+    return laps

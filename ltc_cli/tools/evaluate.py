@@ -11,11 +11,13 @@ Overlap measures are exact for Z-oriented boxes:
 - VIoU: footprint intersection area times the overlap of the z intervals, over the union volume
   (two Z-oriented boxes intersect in a prism: a convex footprint polygon extruded along z).
 
-Matching (:func:`evaluate`): one-to-one, same class only, among pairs with XY IoU > 0 and centres within
-``max_center_distance``; greedy by descending XY IoU (ties: smaller centre distance, then input
-order). Greedy is what the paper's evaluation does in spirit and is stable; an optimal (Hungarian)
-assignment differs only when one object overlaps several of the same class, which is rare in a map
-that is supposed to be one-to-one with the furniture.
+Matching (:func:`evaluate`): one-to-one, same class only, among pairs with XY IoU > 0 (or above a
+reported threshold, 0.25 and 0.5) and centres within ``max_center_distance``; greedy by descending
+XY IoU (ties: smaller centre distance, then input order). Greedy is what the paper's evaluation
+does in spirit and is stable; an optimal (Hungarian) assignment differs only when one object
+overlaps several of the same class, which is rare in a map that is supposed to be one-to-one with
+the furniture. Measures over several laps (ghosts of any earlier lap, ids kept, objects deleted
+while present) are in :mod:`ltc_cli.tools.lap_history`; definitions in docs/evaluation.md.
 """
 
 from __future__ import annotations
@@ -28,6 +30,16 @@ import numpy as np
 from ltc_cli.errors import LtcError
 from ltc_cli.geometry.polygons import pairwise_ious_arrays
 from ltc_cli.map.model import SemanticMap
+from ltc_cli.tools.lap_history import (  # noqa: F401  (ids_kept: re-exported for callers)
+    deleted_while_present,
+    former_places,
+    ids_kept,
+    maintenance_removed_ids,
+    object_arrays,
+)
+
+# The XY IoU levels reported besides "any overlap" (ScanNet-style 3D benchmarks report 0.25 and 0.5).
+IOU_THRESHOLDS = (0.25, 0.5)
 
 
 class EvaluationError(LtcError):
@@ -123,10 +135,6 @@ def _box_arrays(boxes):
 
 
 # ---------------------------------------------------------------------------------------------
-# Exact convex polygon intersection (vectorised Sutherland-Hodgman)
-
-
-# ---------------------------------------------------------------------------------------------
 # IoU of Z-oriented boxes
 
 
@@ -159,12 +167,16 @@ def volume_iou(box_a, box_b) -> float:
 # Matching and metrics
 
 
+def ratio(num, den):
+    """num / den, or None when den is 0: 0/0 is undefined, and 0.0 would flatter nothing and
+    mislead (an empty map would read as precision 0)."""
+    return num / den if den else None
+
+
 def _prf(tp: int, fp: int, fn: int):
-    """precision, recall, F1; 0.0 when a denominator is 0 (scikit-learn's zero_division=0)."""
-    precision = tp / (tp + fp) if tp + fp else 0.0
-    recall = tp / (tp + fn) if tp + fn else 0.0
-    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
-    return precision, recall, f1
+    """precision, recall and F1 = 2 TP / (2 TP + FP + FN) (the harmonic mean of the two, defined
+    even when one of them is not); None where a denominator is 0."""
+    return ratio(tp, tp + fp), ratio(tp, tp + fn), ratio(2 * tp, 2 * tp + fp + fn)
 
 
 def _mean(values):
@@ -181,21 +193,47 @@ def _objects_and_changes(gt):
     return [as_eval_object(o) for o in gt], None
 
 
-def _infer_changes(current, previous):
-    """moved and removed ids of ``previous`` relative to ``current`` when no changes are given."""
-    now = {o.id: o for o in current}
-    moved, removed = [], []
-    for o in previous:
-        c = now.get(o.id)
-        if c is None:
-            removed.append(o.id)
-        elif (
-            np.abs(c.center - o.center).max() > 1e-6
-            or np.abs(c.size - o.size).max() > 1e-6
-            or abs(c.yaw - o.yaw) > 1e-6
-        ):
-            moved.append(o.id)
-    return {"moved": moved, "removed": removed, "added": sorted(set(now) - {o.id for o in previous})}
+def _earlier_laps(previous_gt) -> list:
+    """The earlier laps' objects, oldest first, from one lap (a ground_truth dict or a list of
+    objects) or a sequence of laps (ground_truth dicts or lists of objects)."""
+    if previous_gt is None:
+        return []
+    if isinstance(previous_gt, Mapping):
+        return [_objects_and_changes(previous_gt)[0]]
+    items = list(previous_gt)
+    if items and all((isinstance(x, Mapping) and "objects" in x) or isinstance(x, (list, tuple)) for x in items):
+        return [_objects_and_changes(x)[0] for x in items]
+    return [_objects_and_changes(items)[0]]
+
+
+def _greedy(cand, iou, dist):
+    """One-to-one matching of the candidate pairs by descending IoU (ties: nearer centres, then
+    input order). Returns (map_match (M,), gt_match (G,)), -1 where unmatched."""
+    mi, gi = np.nonzero(cand)
+    order = np.lexsort((gi, mi, dist[mi, gi], -iou[mi, gi]))
+    map_match = np.full(cand.shape[0], -1)
+    gt_match = np.full(cand.shape[1], -1)
+    for k in order:
+        i, j = mi[k], gi[k]
+        if map_match[i] < 0 and gt_match[j] < 0:
+            map_match[i], gt_match[j] = j, i
+    return map_match, gt_match
+
+
+def _kinds(map_match, gt_match, cand, iou, same, ghost_iou):
+    """Each map object's kind: tp, ghost, duplicate or fp (see :func:`evaluate`)."""
+    kind = np.array(["tp"] * len(map_match), dtype=object)
+    matched_gt = gt_match >= 0
+    for i in np.flatnonzero(map_match < 0):
+        row = np.where(cand[i], iou[i], 0.0)
+        best_matched = float(np.where(matched_gt & same[i], iou[i], 0.0).max(initial=0))
+        if ghost_iou[i] > 0 and ghost_iou[i] >= best_matched:
+            kind[i] = "ghost"
+        elif row.max(initial=0) > 0 and matched_gt[int(np.argmax(row))]:
+            kind[i] = "duplicate"
+        else:
+            kind[i] = "fp"
+    return kind
 
 
 def evaluate(
@@ -207,8 +245,9 @@ def evaluate(
     min_seen_pixels: int = 1,
     previous_gt=None,
     changes=None,
+    iou_thresholds=IOU_THRESHOLDS,
 ) -> dict:
-    """Compare a map with the ground truth.
+    """Compare a map with the ground truth (definitions: docs/evaluation.md).
 
     map_objects: sequence of objects (dicts or objects with id, class, center, yaw, size; see
         :func:`as_eval_object`).
@@ -219,157 +258,127 @@ def evaluate(
     seen_only: ground-truth objects with ``seen_pixels < min_seen_pixels`` (the robot never saw
         them) that are not matched are ignored instead of counted as FN. One that *is* matched stays
         a TP (the map object is right), so recall = TP / (TP + FN) stays within [0, 1].
-    previous_gt: the earlier lap's objects (sequence or ground_truth dict) for counting ghosts.
-    changes: {"moved": [...], "removed": [...]} ids; default: those of ``gt_objects`` when it is a
-        dict with changes, else inferred by comparing ``previous_gt`` with ``gt_objects``.
+    previous_gt: the earlier laps' ground truth for counting ghosts: one lap (a ground_truth dict or
+        a list of objects) or a sequence of laps, oldest first (the last is the previous lap).
+    changes: {"moved": [...], "removed": [...]} ids since the previous lap; default: those of
+        ``gt_objects`` when it is a dict with changes. Moves are also inferred from the laps.
+    iou_thresholds: the XY IoU levels of ``at_iou`` (a TP there needs XY IoU above the level).
 
-    Every map object that is not a TP is an FP, and falls in exactly one of:
-      - ``ghost``: same class and XY IoU > 0 with the previous-lap box of a removed or moved
-        object, at least as much as with any matched current ground-truth object of its class (the
-        map still shows the object where it used to be);
+    Matching (every level): one-to-one, same class, centres within ``max_center_distance``, XY IoU
+    above the level (0 for "any overlap", the top-level figures), greedy by descending XY IoU. As
+    the greedy order is by IoU, the matches at level t are exactly the any-overlap matches with IoU
+    > t, so TP counts never rise with the level. Thresholds are on the XY IoU the matcher uses (the
+    paper's measure); VIoU <= XY IoU always, and is reported as a mean over the TPs.
+
+    Every map object that is not a TP (at any overlap) is an FP, and falls in exactly one of:
+      - ``ghost``: same class and XY IoU > 0 with a *former place*, the box of an object in any
+        earlier lap that is not in the current lap (removed) or not at that place (moved: centre
+        more than 0.1 m away, or listed as moved in ``changes``), at least as much as with any matched
+        current ground-truth object of its class (the map still shows an object where it used to be);
       - ``duplicate``: its best same-class ground-truth candidate (XY IoU > 0, centre within
         ``max_center_distance``) was matched by another map object (a second instance of it);
       - otherwise a plain false positive.
 
-    Returns a dict: tp, fp, fn, num_map, num_gt, ignored_gt, precision, recall, f1, mean_xy_iou,
-    mean_viou, mean_position_error (over the TPs; None without TP), duplicates, ghosts,
-    duplicate_ratio, ghost_ratio (over num_map), matches [{map_id, gt_id, class, xy_iou, viou,
-    position_error}], fp_ids, fn_ids, duplicate_ids, ghost_ids, ignored_gt_ids and per_class
+    Returns a dict: tp, fp, fn, num_map, num_gt, ignored_gt, precision, recall, f1, recall_seen and
+    f1_seen (recall over the ground-truth objects with ``seen_pixels >= min_seen_pixels``; None when
+    no ground-truth object says how much of it was seen), mean_xy_iou, mean_viou,
+    mean_position_error (over the TPs), duplicates, ghosts, duplicate_ratio, ghost_ratio (over
+    num_map), earlier_laps, matches [{map_id, gt_id, class, xy_iou, viou, position_error}], fp_ids,
+    fn_ids, duplicate_ids, ghost_ids, ignored_gt_ids, gt_objects [{id, class, center}], per_class
     {class: {num_map, num_gt, tp, fp, fn, precision, recall, f1, mean_xy_iou, mean_viou,
-    mean_position_error, duplicates, ghosts}}.
+    mean_position_error, duplicates, ghosts}}, iou_measure ("xy_iou") and at_iou {"0.25": {the same
+    counts, ratios and means, per_class, fn_ids} ...}. Ratios and means with a zero denominator
+    are None.
     """
     if not max_center_distance > 0:
         raise EvaluationError(f"max_center_distance must be > 0, not {max_center_distance}")
     maps = [as_eval_object(o) for o in map_objects]
     gts, gt_changes = _objects_and_changes(gt_objects)
-    prev, _ = _objects_and_changes(previous_gt)
+    earlier = _earlier_laps(previous_gt)
     if changes is None:
         changes = gt_changes
-    if changes is None and previous_gt is not None:
-        changes = _infer_changes(gts, prev)
     M, G = len(maps), len(gts)
 
-    def arrays(objs):
-        if not objs:
-            return np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
-        return (
-            np.array([o.center for o in objs]),
-            np.array([o.yaw for o in objs]),
-            np.array([o.size for o in objs]),
-        )
-
-    ca, ya, sa = arrays(maps)
-    cg, yg, sg = arrays(gts)
+    ca, ya, sa = object_arrays(maps)
+    cg, yg, sg = object_arrays(gts)
     iou, viou = pairwise_ious_arrays(ca, ya, sa, cg, yg, sg)
     dist = (
         np.linalg.norm(ca[:, None, :] - cg[None, :, :], axis=2) if M and G else np.zeros((M, G))
     )
     same = np.array([[m.cls == g.cls for g in gts] for m in maps], dtype=bool).reshape(M, G)
     cand = same & (iou > 0) & (dist <= max_center_distance)
-
-    # Greedy one-to-one matching by descending IoU (ties: nearer centres, then input order).
-    mi, gi = np.nonzero(cand)
-    order = np.lexsort((gi, mi, dist[mi, gi], -iou[mi, gi]))
-    map_match = np.full(M, -1)
-    gt_match = np.full(G, -1)
-    for k in order:
-        i, j = mi[k], gi[k]
-        if map_match[i] < 0 and gt_match[j] < 0:
-            map_match[i], gt_match[j] = j, i
-
     unseen = np.array(
         [g.seen_pixels is not None and g.seen_pixels < min_seen_pixels for g in gts], dtype=bool
     )
-    ignored = (gt_match < 0) & unseen if seen_only else np.zeros(G, dtype=bool)
+    has_seen = any(g.seen_pixels is not None for g in gts)
 
-    # Former places of removed / moved objects (previous-lap boxes) for ghosts.
-    former = []
-    if changes and prev:
-        gone = set(int(x) for x in changes.get("removed", [])) | set(
-            int(x) for x in changes.get("moved", [])
-        )
-        former = [o for o in prev if o.id in gone]
+    # Former places of objects in any earlier lap, for ghosts.
+    former = former_places(gts, earlier, changes) if earlier else []
+    ghost_iou = np.zeros(M)
     if former and M:
-        iou_prev, _ = pairwise_ious_arrays(ca, ya, sa, *arrays(former))
-        same_prev = np.array([[m.cls == f.cls for f in former] for m in maps], dtype=bool)
-        ghost_iou = np.where(same_prev, iou_prev, 0.0).max(axis=1)
-    else:
-        ghost_iou = np.zeros(M)
+        iou_former, _ = pairwise_ious_arrays(ca, ya, sa, *object_arrays(former))
+        same_former = np.array([[m.cls == f.cls for f in former] for m in maps], dtype=bool)
+        ghost_iou = np.where(same_former, iou_former, 0.0).max(axis=1)
 
-    kind = np.array(["tp"] * M, dtype=object)
-    matched_gt = gt_match >= 0
-    for i in range(M):
-        if map_match[i] >= 0:
-            continue
-        row = np.where(cand[i], iou[i], 0.0)
-        best_matched = float(np.where(matched_gt, np.where(same[i], iou[i], 0.0), 0.0).max(initial=0))
-        if ghost_iou[i] > 0 and ghost_iou[i] >= best_matched:
-            kind[i] = "ghost"
-        elif row.max(initial=0) > 0 and matched_gt[int(np.argmax(row))]:
-            kind[i] = "duplicate"
-        else:
-            kind[i] = "fp"
+    def level(threshold, with_kinds):
+        map_match, gt_match = _greedy(cand & (iou > threshold), iou, dist)
+        ignored = (gt_match < 0) & unseen if seen_only else np.zeros(G, dtype=bool)
+        kind = _kinds(map_match, gt_match, cand, iou, same, ghost_iou) if with_kinds else None
 
-    matches = []
-    for i in range(M):
-        j = map_match[i]
-        if j >= 0:
-            matches.append(
-                {
-                    "map_id": maps[i].id,
-                    "gt_id": gts[j].id,
-                    "class": maps[i].cls,
-                    "xy_iou": float(iou[i, j]),
-                    "viou": float(viou[i, j]),
-                    "position_error": float(dist[i, j]),
-                }
-            )
+        def summary(map_sel, gt_sel, seen_figures=False):
+            tps = [i for i in np.flatnonzero(map_sel) if map_match[i] >= 0]
+            tp = len(tps)
+            fp = int(map_sel.sum()) - tp
+            missed = gt_sel & (gt_match < 0)
+            fn = int((missed & ~ignored).sum())
+            p, r, f1 = _prf(tp, fp, fn)
+            out = {"num_map": int(map_sel.sum()), "num_gt": int(gt_sel.sum()), "tp": tp, "fp": fp,
+                   "fn": fn, "precision": p, "recall": r, "f1": f1}
+            if seen_figures:
+                fn_seen = int((missed & ~unseen).sum())
+                out["recall_seen"] = ratio(tp, tp + fn_seen) if has_seen else None
+                out["f1_seen"] = ratio(2 * tp, 2 * tp + fp + fn_seen) if has_seen else None
+            out["mean_xy_iou"] = _mean([iou[i, map_match[i]] for i in tps])
+            out["mean_viou"] = _mean([viou[i, map_match[i]] for i in tps])
+            out["mean_position_error"] = _mean([dist[i, map_match[i]] for i in tps])
+            if kind is not None:
+                out["duplicates"] = int(sum(1 for i in np.flatnonzero(map_sel) if kind[i] == "duplicate"))
+                out["ghosts"] = int(sum(1 for i in np.flatnonzero(map_sel) if kind[i] == "ghost"))
+            return out
 
-    def summary(map_sel, gt_sel):
-        tp = int(sum(1 for i in np.flatnonzero(map_sel) if map_match[i] >= 0))
-        fp = int(map_sel.sum()) - tp
-        fn = int(sum(1 for j in np.flatnonzero(gt_sel) if gt_match[j] < 0 and not ignored[j]))
-        p, r, f1 = _prf(tp, fp, fn)
-        tps = [i for i in np.flatnonzero(map_sel) if map_match[i] >= 0]
-        dup = int(sum(1 for i in np.flatnonzero(map_sel) if kind[i] == "duplicate"))
-        gho = int(sum(1 for i in np.flatnonzero(map_sel) if kind[i] == "ghost"))
-        return {
-            "num_map": int(map_sel.sum()),
-            "num_gt": int(gt_sel.sum()),
-            "tp": tp,
-            "fp": fp,
-            "fn": fn,
-            "precision": p,
-            "recall": r,
-            "f1": f1,
-            "mean_xy_iou": _mean([iou[i, map_match[i]] for i in tps]),
-            "mean_viou": _mean([viou[i, map_match[i]] for i in tps]),
-            "mean_position_error": _mean([dist[i, map_match[i]] for i in tps]),
-            "duplicates": dup,
-            "ghosts": gho,
-        }
+        res = summary(np.ones(M, dtype=bool), np.ones(G, dtype=bool), seen_figures=True)
+        res["fn_ids"] = [gts[j].id for j in range(G) if gt_match[j] < 0 and not ignored[j]]
+        classes = sorted({m.cls for m in maps} | {g.cls for g in gts})
+        map_cls = np.array([m.cls for m in maps], dtype=object)
+        gt_cls = np.array([g.cls for g in gts], dtype=object)
+        res["per_class"] = {c: summary(map_cls == c, gt_cls == c) for c in classes}
+        return res, map_match, ignored, kind
 
-    result = summary(np.ones(M, dtype=bool), np.ones(G, dtype=bool))
+    result, map_match, ignored, kind = level(0.0, True)
     result["ignored_gt"] = int(ignored.sum())
-    result["duplicate_ratio"] = result["duplicates"] / M if M else 0.0
-    result["ghost_ratio"] = result["ghosts"] / M if M else 0.0
-    result["matches"] = matches
+    result["duplicate_ratio"] = ratio(result["duplicates"], M)
+    result["ghost_ratio"] = ratio(result["ghosts"], M)
+    result["earlier_laps"] = len(earlier)
+    result["matches"] = [
+        {"map_id": maps[i].id, "gt_id": gts[j].id, "class": maps[i].cls, "xy_iou": float(iou[i, j]),
+         "viou": float(viou[i, j]), "position_error": float(dist[i, j])}
+        for i, j in enumerate(map_match) if j >= 0
+    ]
     result["fp_ids"] = [maps[i].id for i in range(M) if map_match[i] < 0]
-    result["fn_ids"] = [gts[j].id for j in range(G) if gt_match[j] < 0 and not ignored[j]]
     result["duplicate_ids"] = [maps[i].id for i in range(M) if kind[i] == "duplicate"]
     result["ghost_ids"] = [maps[i].id for i in range(M) if kind[i] == "ghost"]
     result["ignored_gt_ids"] = [gts[j].id for j in range(G) if ignored[j]]
-    classes = sorted({m.cls for m in maps} | {g.cls for g in gts})
-    map_cls = np.array([m.cls for m in maps], dtype=object)
-    gt_cls = np.array([g.cls for g in gts], dtype=object)
-    result["per_class"] = {c: summary(map_cls == c, gt_cls == c) for c in classes}
+    result["gt_objects"] = [{"id": g.id, "class": g.cls, "center": [float(x) for x in g.center]} for g in gts]
+    result["iou_measure"] = "xy_iou"
+    result["at_iou"] = {f"{t:g}": level(float(t), False)[0] for t in iou_thresholds}
     return result
 
 
-def map_objects(smap: SemanticMap) -> list[dict]:
-    """The active objects of a map as {id, class, center, yaw, size} (class = top non-other score)."""
+def map_objects(smap: SemanticMap, rows=None) -> list[dict]:
+    """Objects of a map as {id, class, center, yaw, size} (class = top non-other score): the active
+    ones, or those of the given table ``rows`` (e.g. removed objects, with the box they had)."""
     t = smap.objects
-    rows = smap.active_rows()
+    rows = smap.active_rows() if rows is None else np.asarray(rows, dtype=np.int64)
     top = t.scores[rows, :-1].argmax(axis=1) if len(rows) else np.zeros(0, int)
     return [
         {"id": int(r + 1), "class": smap.classes[int(c)], "center": t.center[r], "yaw": float(t.yaw[r]),
@@ -378,12 +387,18 @@ def map_objects(smap: SemanticMap) -> list[dict]:
     ]
 
 
-def evaluate_map(smap: SemanticMap, gt: dict, previous: dict | None = None, **kw) -> dict:
-    """Metrics of DESIGN.md section 8 for a map, with recall over all ground-truth objects and
-    over those the robot saw (``recall_seen``)."""
-    objs = map_objects(smap)
-    res = evaluate(objs, gt, previous_gt=previous, **kw)
-    seen = evaluate(objs, gt, previous_gt=previous, seen_only=True, **kw)
-    res["recall_seen"] = seen["recall"]
-    res["f1_seen"] = seen["f1"]
+def evaluate_map(smap: SemanticMap, gt: dict, previous=None, **kw) -> dict:
+    """Metrics of DESIGN.md section 8 for a map (see :func:`evaluate`; ``previous`` is one earlier
+    lap's ground truth or a sequence of them, oldest first), plus ``deleted_while_present``: the
+    ground-truth objects of this lap on which a map object stood that maintenance removed
+    (:func:`ltc_cli.tools.lap_history.deleted_while_present`, from the map's event log), with
+    ``lost_gt_ids``: those of them that no map object stands on now (FN)."""
+    res = evaluate(map_objects(smap), gt, previous_gt=previous, **kw)
+    ids = [i for i in maintenance_removed_ids(smap.events) if 1 <= i <= smap.objects.n]
+    removed = [as_eval_object(o) for o in map_objects(smap, np.array(ids, dtype=np.int64) - 1)]
+    d = deleted_while_present(
+        removed, _objects_and_changes(gt)[0], max_center_distance=kw.get("max_center_distance", 3.0)
+    )
+    d["lost_gt_ids"] = sorted(set(d["gt_ids"]) & set(res["fn_ids"]))
+    res["deleted_while_present"] = d
     return res

@@ -1,0 +1,167 @@
+"""Measures over several laps of one house (docs/evaluation.md): where objects used to stand, which
+objects stayed put, whether the map kept their ids, and whether maintenance deleted objects that
+were still there.
+
+Pure functions, no I/O. Ground-truth and map objects are anything with ``id``, ``cls``,
+``center (3,)``, ``yaw`` and ``size (3,)`` (e.g. :class:`ltc_cli.tools.evaluate.EvalObject`);
+evaluation results are the dicts :func:`ltc_cli.tools.evaluate.evaluate` returns.
+
+Identity across laps is the ground truth's object id: the ground-truth format's ``changes`` lists
+(moved / removed / added ids since the previous lap) already rely on ids that persist from lap to
+lap, and ``ltc simulate`` writes them so.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ltc_cli.geometry.polygons import pairwise_ious_arrays
+
+# An object is "unchanged" between two laps when its centre moved at most this far (metres). Large
+# enough for annotation noise, small next to any real move (ltc simulate moves objects by
+# decimetres to metres).
+UNCHANGED_DISTANCE = 0.1
+
+
+def unchanged(a, b, tol: float = UNCHANGED_DISTANCE) -> bool:
+    """True when ground-truth objects ``a`` and ``b`` (of two laps) are the same object at the same
+    place: same id, same class, centres within ``tol`` metres."""
+    return (
+        a.id == b.id
+        and a.cls == b.cls
+        and float(np.linalg.norm(np.asarray(a.center) - np.asarray(b.center))) <= tol
+    )
+
+
+def former_places(current, earlier_laps, changes=None, tol: float = UNCHANGED_DISTANCE) -> list:
+    """The boxes where an object stood in some earlier lap and no longer stands now.
+
+    current: the current lap's ground-truth objects.
+    earlier_laps: sequence of earlier laps' ground-truth objects, oldest first (the last one is the
+        previous lap).
+    changes: the current lap's ``changes`` ({"moved": ids, "removed": ids}), relative to the previous
+        lap; those ids' previous-lap boxes are former places even if they moved less than ``tol``.
+
+    An earlier-lap object is at a former place when the current lap holds no object :func:`unchanged`
+    from it (removed, or moved more than ``tol``). Returns those earlier-lap objects (one per lap in
+    which the object stood there; duplicates are harmless because only the best overlap is used).
+    """
+    now = {o.id: o for o in current}
+    listed = set()
+    if changes:
+        listed = {int(i) for i in changes.get("moved", [])} | {int(i) for i in changes.get("removed", [])}
+    places = []
+    for k, lap in enumerate(earlier_laps):
+        is_previous = k == len(earlier_laps) - 1
+        for o in lap:
+            c = now.get(o.id)
+            if c is None or not unchanged(o, c, tol) or (is_previous and o.id in listed):
+                places.append(o)
+    return places
+
+
+def ids_kept(before: Mapping, after: Mapping, tol: float = UNCHANGED_DISTANCE) -> dict:
+    """Whether the map kept the ids of the objects that did not change between two laps.
+
+    before, after: :func:`~ltc_cli.tools.evaluate.evaluate` results of the map after lap k-1 and
+    after lap k against those laps' ground truth (they carry ``gt_objects`` and ``matches``).
+
+    An unchanged ground-truth object (same id and class in both laps, centre within ``tol``) that
+    was matched after lap k-1 is *kept* when it is matched after lap k to the same map object id.
+    One that is unmatched after lap k (deleted, or replaced by an object that no longer overlaps) is
+    not kept. Unchanged objects unmatched after lap k-1 had no id to keep and are left out.
+
+    Returns {"unchanged": unchanged objects, "tracked": of those, matched after lap k-1, "kept",
+    "share": kept / tracked (None when nothing was tracked), "lost_gt_ids": tracked but not kept}.
+    """
+
+    def gt_by_id(res):
+        return {int(g["id"]): g for g in res["gt_objects"]}
+
+    def map_id_of(res):
+        return {int(m["gt_id"]): int(m["map_id"]) for m in res["matches"]}
+
+    gb, ga = gt_by_id(before), gt_by_id(after)
+    mb, ma = map_id_of(before), map_id_of(after)
+    same = [
+        i for i, g in gb.items()
+        if i in ga and g["class"] == ga[i]["class"]
+        and float(np.linalg.norm(np.subtract(g["center"], ga[i]["center"]))) <= tol
+    ]
+    tracked = [i for i in same if i in mb]
+    kept = [i for i in tracked if ma.get(i) == mb[i]]
+    return {
+        "unchanged": len(same),
+        "tracked": len(tracked),
+        "kept": len(kept),
+        "share": len(kept) / len(tracked) if tracked else None,
+        "lost_gt_ids": sorted(set(tracked) - set(kept)),
+    }
+
+
+def _event_field(event, key):
+    return event.get(key) if isinstance(event, Mapping) else getattr(event, key)
+
+
+def maintenance_removed_ids(events) -> list[int]:
+    """Ids of the map objects removed by non-detections (map maintenance, eq. 4): events of kind
+    ``removed`` whose detail starts with "other" (the `other` score overtook the object's class).
+    Other removals (e.g. "unconfirmed": a one-off detection never seen again) are not counted."""
+    return sorted({
+        int(_event_field(e, "object_id"))
+        for e in events
+        if _event_field(e, "kind") == "removed" and str(_event_field(e, "detail") or "").startswith("other")
+    })
+
+
+def object_arrays(objs):
+    """center (N, 3), yaw (N,), size (N, 3) of a sequence of objects with those attributes."""
+    if not objs:
+        return np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
+    return (np.array([o.center for o in objs], dtype=np.float64),
+            np.array([o.yaw for o in objs], dtype=np.float64),
+            np.array([o.size for o in objs], dtype=np.float64))
+
+
+def deleted_while_present(removed_objects, gt_objects, *, max_center_distance: float = 3.0) -> dict:
+    """Ground-truth objects present in the current lap on which a map object stood that maintenance
+    removed (at any time).
+
+    removed_objects: the map objects removed by non-detections (see :func:`maintenance_removed_ids`),
+        with the box and class they had when removed.
+    gt_objects: the current lap's ground-truth objects.
+
+    Each removed object is a view of the ground-truth object it overlaps best among those of its class
+    (XY IoU > 0, centres within ``max_center_distance``; ties: nearer centre); one with no such
+    object was rightly removed (or was never right). Not one-to-one: an object deleted and rebuilt
+    twice has two removed map objects on it and counts once.
+
+    Returns {"count": ground-truth objects with a removed map object on them, "present": ground-truth
+    objects, "share": count / present (None when there are none), "gt_ids", "map_ids"}.
+    """
+    G = len(gt_objects)
+    gt_ids, map_ids = set(), []
+    if removed_objects and G:
+        ca, ya, sa = object_arrays(removed_objects)
+        cg, yg, sg = object_arrays(gt_objects)
+        iou, _ = pairwise_ious_arrays(ca, ya, sa, cg, yg, sg)
+        dist = np.linalg.norm(ca[:, None, :] - cg[None, :, :], axis=2)
+        same = np.array([[r.cls == g.cls for g in gt_objects] for r in removed_objects], dtype=bool)
+        ok = same & (iou > 0) & (dist <= max_center_distance)
+        for i, r in enumerate(removed_objects):
+            if not ok[i].any():
+                continue
+            # Best IoU, then the nearer centre: lexsort's last key is the primary one.
+            cand = np.flatnonzero(ok[i])
+            j = cand[np.lexsort((dist[i, cand], -iou[i, cand]))[0]]
+            gt_ids.add(int(gt_objects[j].id))
+            map_ids.append(int(r.id))
+    return {
+        "count": len(gt_ids),
+        "present": G,
+        "share": len(gt_ids) / G if G else None,
+        "gt_ids": sorted(gt_ids),
+        "map_ids": sorted(map_ids),
+    }
