@@ -1,14 +1,10 @@
 """Write small ltc-recording/1 folders from the analytic scene of tests/scene.py."""
 
-import json
 from pathlib import Path
 
 import numpy as np
-import yaml
-from PIL import Image
-from scipy.spatial.transform import Rotation
 
-from ltc_cli.recordings import rle
+from ltc_cli.recordings.writer import RecordingWriter
 from tests.scene import INTR, T_world_camera, render
 
 CLASSES = ["chair", "table", "tv"]
@@ -21,9 +17,6 @@ OBJECTS = [
 
 
 def write_recording(root, objects=OBJECTS, cam_ys=(1.5, 0.75, 0.0, -0.75, -1.5), wall_x=4.0):
-    root = Path(root)
-    for sub in ("rgb", "depth", "detections"):
-        (root / sub).mkdir(parents=True, exist_ok=True)
     meta = {
         "format": "ltc-recording/1",
         "camera": {"width": INTR.width, "height": INTR.height, "fx": INTR.fx, "fy": INTR.fy,
@@ -31,21 +24,13 @@ def write_recording(root, objects=OBJECTS, cam_ys=(1.5, 0.75, 0.0, -0.75, -1.5),
         "depth": {"scale": 1000.0, "min": 0.3, "max": 6.0},
         "classes": CLASSES,
     }
-    (root / "recording.yaml").write_text(yaml.safe_dump(meta))
-    lines = []
+    writer = RecordingWriter(root, meta)
     for i, cam_y in enumerate(cam_ys):
-        key = f"{i:06d}"
-        T = T_world_camera(cam_y=cam_y)
-        q = Rotation.from_matrix(T[:3, :3]).as_quat()  # x, y, z, w
-        lines.append(" ".join([key] + [repr(float(v)) for v in list(T[:3, 3]) + list(q)]))
         depth, masks = render([o for o, _ in objects], wall_x=wall_x, cam_y=cam_y)
-        Image.fromarray(np.round(depth * 1000).astype(np.uint16)).save(root / "depth" / f"{key}.png")
         gray = (np.clip(depth / 5.0, 0, 1) * 255).astype(np.uint8)
-        Image.fromarray(np.stack([gray] * 3, -1)).save(root / "rgb" / f"{key}.png")
-        instances = []
-        for (box, cls), mask in zip(objects, masks):
-            if mask.sum() > 200:
-                instances.append({"class": CLASSES[cls], "score": 0.9, "mask": rle.encode(mask)})
-        (root / "detections" / f"{key}.json").write_text(json.dumps({"frame": key, "instances": instances}))
-    (root / "poses.txt").write_text("\n".join(lines) + "\n")
-    return root
+        instances = [{"class": CLASSES[cls], "score": 0.9, "mask": mask}
+                     for (box, cls), mask in zip(objects, masks) if mask.sum() > 200]
+        writer.write_frame(f"{i:06d}", T_world_camera(cam_y=cam_y), np.stack([gray] * 3, -1),
+                           np.round(depth * 1000).astype(np.uint16), instances=instances)
+    writer.close()
+    return Path(root)

@@ -11,6 +11,7 @@ import yaml
 from click.testing import CliRunner
 from PIL import Image
 
+import ltc_cli.recordings.writer as rec_writer
 import ltc_cli.tools.simulate as sim
 from ltc_cli.recordings import rle
 from ltc_cli.tools.calibrate import calibrate, match_frame, scaled_min_pixels, write_calibration
@@ -123,7 +124,7 @@ def noiseless(tmp_path_factory):
     visibility statistics captured to compute each instance's miss probability independently."""
     out = tmp_path_factory.mktemp("sim")
     stats = []
-    render = sim._Renderer.render
+    render = sim.Renderer.render
 
     def capture(self, *args, **kw):
         res = render(self, *args, **kw)
@@ -131,8 +132,8 @@ def noiseless(tmp_path_factory):
         return res
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(sim, "PNG_LEVEL", 1)  # fast PNGs: same pixels
-        mp.setattr(sim._Renderer, "render", capture)
+        mp.setattr(rec_writer, "PNG_LEVEL", 1)  # fast PNGs: same pixels
+        mp.setattr(sim.Renderer, "render", capture)
         sim.simulate(out, scene="small", laps=1, seed=3, width=160, height=120, frames_per_room=200, **SIM_OPTS)
     rec = out / "lap1"
     return rec, stats
@@ -201,7 +202,7 @@ def house(tmp_path_factory):
     """Two laps of the tiny house; three of its seven objects are gone in lap 2."""
     out = tmp_path_factory.mktemp("house")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(sim, "PNG_LEVEL", 1)
+        mp.setattr(rec_writer, "PNG_LEVEL", 1)
         summary = sim.simulate(out, scene="tiny", laps=2, seed=1, width=320, height=240, frames_per_room=30,
                                miss_rate=0.1, moved_fraction=0, added_fraction=0, removed_fraction=0.4)
     return out, summary

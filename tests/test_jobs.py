@@ -9,6 +9,7 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
+import ltc_cli.recordings.writer as rec_writer
 import ltc_cli.tools.simulate as sim
 from ltc_cli import hookimpl, plugins
 from ltc_cli.cli import cli
@@ -27,7 +28,7 @@ def run(*args):
 def laps(tmp_path_factory):
     out = tmp_path_factory.mktemp("house")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(sim, "PNG_LEVEL", 1)  # fast PNGs: same pixels
+        mp.setattr(rec_writer, "PNG_LEVEL", 1)  # fast PNGs: same pixels
         sim.simulate(out, scene="tiny", laps=2, seed=2, width=320, height=240, frames_per_room=20)
     return out / "lap1", out / "lap2"
 

@@ -14,7 +14,9 @@ from PIL import Image
 from ltc_cli.recordings import rle
 from ltc_cli.errors import LtcError
 from ltc_cli.geometry.camera import pose_matrix
-from ltc_cli.tools.simulate import CLASSES, _House, _path, simulate
+from ltc_cli.tools.simulate import CLASSES, simulate
+from ltc_cli.tools.simulate import House as _House
+from ltc_cli.tools.simulate import camera_path as _path
 
 SCHEMAS = Path(__file__).resolve().parents[1] / "schemas"
 W, H = 160, 120
