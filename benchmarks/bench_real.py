@@ -1,0 +1,151 @@
+"""The real shared recordings with the real shared detector: objects per class against the truth
+counted in their READMEs, ids kept on ``--revisit``, a reversed-order pass, frames per second.
+
+    python benchmarks/bench_real.py [--model ../shared/models/yolov8n-seg_fp32.onnx]
+                                    [--recordings tum-fr1-rpy,dining-room] [--set key=value]...
+
+Each recording is mapped three times: forward (timed: detection + mapping, one thread), forward
+again as a ``--revisit`` of the same map, and in reverse frame order into a new map. The detector
+runs once per frame; the revisit and the reverse pass replay its detections (the detector is
+deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from collections import Counter
+from dataclasses import replace
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+from ltc_cli import hookimpl, plugins  # noqa: E402
+from ltc_cli.config import load_config  # noqa: E402
+from ltc_cli.ingest.session import ingest  # noqa: E402
+from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
+from ltc_cli.map.store import load_map  # noqa: E402
+
+SHARED = ROOT.parent / "shared"
+
+# What is in view, from the recordings' READMEs: (fewest, most) per class; classes not listed
+# should not be in the map at all (person never). The READMEs count by eye: "a few" books.
+TRUTH = {
+    "tum-fr1-rpy": {"tv": (2, 3), "keyboard": (1, 2), "mouse": (1, 2), "cup": (1, 2), "book": (0, 4),
+                    "chair": (1, 2), "laptop": (0, 0), "person": (0, 0), "dining table": (0, 2)},
+    "dining-room": {"dining table": (1, 1), "chair": (1, 9), "couch": (1, 1), "person": (0, 0)},
+}
+
+
+class Replay:
+    """Wraps a detector: detects each frame once, then replays (shared by all passes)."""
+
+    thread_safe = True
+    store: dict = {}
+
+    def __init__(self, recording, options):
+        self.inner = plugins.get("detectors", "onnx-yolo-seg").factory(recording, options)
+        self.classes = self.inner.classes
+        self.identity = recording.identity
+
+    def detect(self, frame):
+        key = (self.identity, frame.key)
+        if key not in self.store:
+            self.store[key] = self.inner.detect(frame)
+        return self.store[key]
+
+
+class Reversed:
+    """Any recording with its frames in reverse order (the same route driven backwards)."""
+
+    def sniff(self, path) -> bool:
+        return False
+
+    def open(self, path, options):
+        from ltc_cli.recordings.open import open_recording
+
+        rec = open_recording(path)
+        return replace(rec, frames=list(reversed(rec.frames)))
+
+
+class BenchPlugin:
+    @hookimpl
+    def register_detectors(self, register):
+        register("replay-yolo", Replay)
+
+    @hookimpl
+    def register_readers(self, register):
+        register("reversed", Reversed())
+
+
+def dining_room(tmp: Path) -> Path:
+    from tests.test_dining_room import make_recording
+
+    return make_recording(tmp / "dining-room")
+
+
+def census(map_path) -> tuple[Counter, set]:
+    smap = load_map(map_path)
+    t = smap.objects
+    rows = np.flatnonzero(t.status == ACTIVE)
+    return Counter(smap.classes[int(c)] for c in top_class(t.scores[rows])), set((rows + 1).tolist())
+
+
+def verdict(name: str, counts: Counter) -> str:
+    truth = TRUTH.get(name, {})
+    bad = [f"{c} {counts.get(c, 0)} not in [{lo}, {hi}]" for c, (lo, hi) in truth.items()
+           if not lo <= counts.get(c, 0) <= hi]
+    extra = sorted(c for c in counts if c not in truth)
+    return "; ".join(bad + ([f"not in the README: {', '.join(extra)}"] if extra else [])) or "all as counted"
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--model", default=str(SHARED / "models" / "yolov8n-seg_fp32.onnx"))
+    ap.add_argument("--recordings", default="tum-fr1-rpy,dining-room")
+    ap.add_argument("--set", dest="sets", action="append", default=[])
+    args = ap.parse_args()
+    if not Path(args.model).is_file():
+        sys.exit(f"bench_real: {args.model}: model not found (needs ../shared)")
+    plugins.register_plugin(BenchPlugin(), name="bench-real")
+    sets = ["detector.name=replay-yolo", f"detector.options.model={args.model}", *args.sets]
+    print(f"model {Path(args.model).name}; overrides: {args.sets or 'none'}")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        for name in args.recordings.split(","):
+            path = dining_room(tmp) if name == "dining-room" else SHARED / "data" / name
+            m, m_rev = tmp / f"{name}.h5", tmp / f"{name}-reversed.h5"
+            t0, c0 = time.perf_counter(), time.process_time()
+            s = ingest([path], m, load_config(None, sets))
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            first, ids1 = census(m)
+            ingest([path], m, load_config(None, sets), revisit=True)
+            second, ids2 = census(m)
+            ingest([path], m_rev, load_config(None, sets), reader="reversed")
+            rev, _ = census(m_rev)
+            classes = sorted(set(first) | set(second) | set(rev) | set(TRUTH.get(name, {})))
+            print(f"\n{name}: {s.frames_done} frames, {s.frames_done / wall:.1f} frames/s "
+                  f"({1000 * cpu / max(s.frames_done, 1):.0f} ms CPU per frame, detection included, one thread)")
+            print(f"  {'class':<14}{'truth':>8}{'session 1':>11}{'revisit':>9}{'reversed':>10}")
+            for c in classes:
+                lo, hi = TRUTH.get(name, {}).get(c, (0, 0))
+                truth = f"{lo}" if lo == hi else f"{lo}-{hi}"
+                print(f"  {c:<14}{truth:>8}{first.get(c, 0):>11}{second.get(c, 0):>9}{rev.get(c, 0):>10}")
+            kept = len(ids1 & ids2) / max(len(ids1), 1)
+            n1, n2 = sum(first.values()), sum(second.values())
+            print(f"  objects {n1} -> {n2} on --revisit ({(n2 - n1) / max(n1, 1):+.0%}); ids kept {kept:.0%}")
+            print(f"  session 1: {verdict(name, first)}")
+            print(f"  reversed:  {verdict(name, rev)}; largest per-class difference from session 1: "
+                  f"{max((abs(first.get(c, 0) - rev.get(c, 0)) for c in classes), default=0)}")
+
+
+if __name__ == "__main__":
+    main()
