@@ -267,7 +267,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
     try:
         for setup in plan.setups:
             rec, det = setup.recording, setup.detector
-            mapper_classes = ClassMapper(det.classes, smap.classes)
+            mapper_classes = ClassMapper(det.classes, smap.classes, plan.settings["integration"]["unassigned_score"])
             T_up = setup.T_up
             keys = [frame_key(rec.identity, ref.key, summary.visit) for ref in rec.frames]
             if opts.jobs > 1:

@@ -20,6 +20,9 @@ def top_class(scores: np.ndarray) -> np.ndarray:
 
 ACTIVE, REMOVED, MERGED = 0, 1, 2
 
+# Columns added after format 1: a map written before them reads them as zeros.
+ADDED_COLUMNS = frozenset({"n_clear", "nondet_view"})
+
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
 
@@ -36,6 +39,9 @@ COLUMNS = {
     # Frames in which the object was clearly visible (enough pixels for a non-detection), detected
     # or not: with n_nondet, the detector's hit rate on it (the learnt per-class detection rate).
     "n_clear": ((), np.int64),
+    # Camera position (3) and forward axis (3) at the object's last counted non-detection (zeros:
+    # none yet): misses from nearly the same view are one piece of evidence, not several.
+    "nondet_view": ((6,), np.float64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),
     "first_frame": ((), np.int64),

@@ -19,7 +19,7 @@ import numpy as np
 from ltc_cli import __version__
 from ltc_cli.errors import LtcError, MapFormatError, MapLockedError
 from ltc_cli.fileio import atomic_target
-from ltc_cli.map.model import COLUMNS, Event, ObjectTable, SemanticMap
+from ltc_cli.map.model import ADDED_COLUMNS, COLUMNS, Event, ObjectTable, SemanticMap
 
 FORMAT = "ltc-map"
 VERSION = 1
@@ -128,7 +128,7 @@ def load_map(path) -> SemanticMap:
     try:
         classes = _text(f["classes"][()])
         og = f["objects"]
-        cols = {name: og[name][()] for name in list(COLUMNS) + ["scores"] if name in og or name != "n_clear"}
+        cols = {name: og[name][()] for name in list(COLUMNS) + ["scores"] if name in og or name not in ADDED_COLUMNS}
         if cols["scores"].ndim != 2 or cols["scores"].shape[1] != len(classes) + 1:
             raise MapFormatError("objects/scores does not match the class list", path)
         table = ObjectTable.from_columns(cols)

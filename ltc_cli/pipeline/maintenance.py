@@ -176,3 +176,29 @@ def v_other_from_detection_rate(rate: np.ndarray, score: float, margin: float, l
     """
     rate = np.clip(np.asarray(rate, dtype=np.float64), 1e-6, 1 - 1e-6)
     return np.clip(margin * rate * score / (1.0 - rate), lo, hi)
+
+
+def camera_view(T_map_camera: np.ndarray) -> np.ndarray:
+    """(6,) the camera's position and forward (optical, +z) axis in the map frame."""
+    return np.concatenate([T_map_camera[:3, 3], T_map_camera[:3, 2]])
+
+
+def new_view(last_views: np.ndarray, view: np.ndarray, min_move: float | None, min_turn_deg: float | None) -> np.ndarray:
+    """(M,) bool: whether a view (6,) differs enough from each object's last counted miss (M, 6).
+
+    A detector's misses of one object from nearly the same place and direction are correlated (the
+    same blur, angle or lighting), so counting each frame as independent evidence removes real
+    objects after one bad second. A miss counts when the camera has moved ``min_move`` metres or
+    turned ``min_turn_deg`` degrees since the last counted one (None for both: every miss counts,
+    the paper), or when there was none yet (zeros).
+    """
+    last_views = np.atleast_2d(last_views)
+    fresh = ~last_views.any(axis=1)
+    if min_move is None and min_turn_deg is None:
+        return np.ones(len(last_views), dtype=bool)
+    if min_move is not None:
+        fresh |= np.linalg.norm(last_views[:, :3] - view[:3], axis=1) >= min_move
+    if min_turn_deg is not None:
+        cos = np.clip(last_views[:, 3:] @ view[3:], -1.0, 1.0)
+        fresh |= np.degrees(np.arccos(cos)) >= min_turn_deg
+    return fresh

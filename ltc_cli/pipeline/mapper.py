@@ -22,7 +22,7 @@ from ltc_cli.pipeline.association import (
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
 from ltc_cli.pipeline.maintenance import (
-    class_hit_counts, in_view, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
+    camera_view, class_hit_counts, in_view, new_view, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.modeling import model_detections
@@ -243,6 +243,10 @@ class Mapper:
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
+        if missed.any():
+            t, view = self.map.objects, camera_view(T_map_camera)
+            missed &= new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
+            t.cols["nondet_view"][rows[missed]] = view
         return missed, vis_px >= need
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
