@@ -3,9 +3,12 @@
 Simulates several two-lap houses (seeds other than the sample data's), ingests lap 1 then lap 2 into
 one map with every combination of association metric (vertex / centroid) and maintenance policy
 (non-detection / static), and prints the per-lap table like the paper's Tables 1-2, summed over the
-houses. Simulated houses are cached in benchmarks/.cache (delete it to rebuild).
+houses. The houses use the simulator's realistic profile (pose drift, per-class and correlated
+misses, systematic mislabels, phantoms, CNN-like masks, depth holes, people; docs/simulator.md)
+unless --profile benign. Simulated houses are cached in benchmarks/.cache (delete it to rebuild).
 
-    python benchmarks/bench_accuracy.py [--houses 4] [--scene small] [--set key=value]...
+    python benchmarks/bench_accuracy.py [--houses 4] [--scene small] [--profile realistic|benign]
+        [--set key=value]... [--sim option=value]...
 """
 
 from __future__ import annotations
@@ -33,8 +36,8 @@ CACHE = Path(__file__).resolve().parent / ".cache"
 COMBOS = [("vertex", "non-detection"), ("vertex", "static"), ("centroid", "non-detection"), ("centroid", "static")]
 
 
-def house(scene: str, seed: int, sim_sets=()) -> Path:
-    tag = "-".join([scene, str(seed)] + [s.replace("=", "_") for s in sim_sets])
+def house(scene: str, seed: int, sim_sets=(), profile: str = "realistic") -> Path:
+    tag = "-".join([scene, str(seed), profile] + [s.replace("=", "_") for s in sim_sets])
     out = CACHE / tag
     if not (out / "lap2" / "ground_truth.json").is_file():
         import shutil
@@ -44,7 +47,7 @@ def house(scene: str, seed: int, sim_sets=()) -> Path:
         for s in sim_sets:
             k, v = s.split("=", 1)
             opts[k] = float(v) if "." in v else int(v)
-        simulate(out, scene=scene, laps=2, seed=seed, **opts)
+        simulate(out, scene=scene, laps=2, seed=seed, profile=profile, **opts)
     return out
 
 
@@ -74,6 +77,8 @@ def main():
     ap.add_argument("--houses", type=int, default=4)
     ap.add_argument("--scene", default="small")
     ap.add_argument("--first-seed", type=int, default=101)
+    ap.add_argument("--profile", choices=["realistic", "benign"], default="realistic",
+                    help="the simulator's profile (default realistic)")
     ap.add_argument("--config", help="ltc config file (e.g. docs/paper.yaml for the paper's behaviour)")
     ap.add_argument("--set", dest="sets", action="append", default=[], help="ltc config override")
     ap.add_argument("--sim", dest="sim", action="append", default=[], help="simulator option override")
@@ -83,8 +88,9 @@ def main():
     args = ap.parse_args()
     combos = COMBOS if args.combos == "all" else [tuple(c.split("/")) for c in args.combos.split(",")]
     t0 = time.time()
-    houses = [house(args.scene, args.first_seed + i, args.sim) for i in range(args.houses)]
-    print(f"{args.houses} simulated '{args.scene}' houses (seeds {args.first_seed}..{args.first_seed + args.houses - 1}), "
+    houses = [house(args.scene, args.first_seed + i, args.sim, args.profile) for i in range(args.houses)]
+    print(f"{args.houses} simulated '{args.scene}' houses ({args.profile} profile, "
+          f"seeds {args.first_seed}..{args.first_seed + args.houses - 1}), "
           f"2 laps each; prepared in {time.time() - t0:.0f} s; config: {args.config or 'defaults'}; "
           f"v_Other: {'calibrated per house on lap 1' if args.calibrate else 'from the config'}; "
           f"overrides: {args.sets or 'none'}")
