@@ -5,10 +5,13 @@ lap 2, ... into one map with every combination of association metric (vertex / c
 maintenance policy (non-detection / static), and prints the per-lap table like the paper's Tables
 1-2, summed over the houses; then, per lap, the figures that cannot be flattered (docs/evaluation.md):
 precision / recall / F1 with a TP needing XY IoU > 0.25 (and > 0.5, compact), duplicates, ghosts of
-any earlier lap, present objects deleted by maintenance and ids kept since the lap before.
+any earlier lap, present objects deleted by maintenance and ids kept since the lap before. The houses
+use the simulator's realistic profile (pose drift, per-class and correlated misses, systematic
+mislabels, phantoms, CNN-like masks, depth holes, people; docs/simulator.md) unless --profile benign.
 Simulated houses are cached in benchmarks/.cache (delete it to rebuild).
 
-    python benchmarks/bench_accuracy.py [--houses 4] [--scene small] [--laps 2] [--set key=value]...
+    python benchmarks/bench_accuracy.py [--houses 4] [--scene small] [--laps 2] [--profile realistic|benign]
+        [--set key=value]... [--sim option=value]...
 """
 
 from __future__ import annotations
@@ -36,9 +39,9 @@ CACHE = Path(__file__).resolve().parent / ".cache"
 COMBOS = [("vertex", "non-detection"), ("vertex", "static"), ("centroid", "non-detection"), ("centroid", "static")]
 
 
-def house(scene: str, seed: int, sim_sets=(), laps: int = 2) -> Path:
-    # Two-lap houses keep their old cache names; other lap counts get their own folders.
-    tag = "-".join([scene, str(seed)] + [s.replace("=", "_") for s in sim_sets] + ([] if laps == 2 else [f"laps{laps}"]))
+def house(scene: str, seed: int, sim_sets=(), laps: int = 2, profile: str = "realistic") -> Path:
+    tag = "-".join([scene, str(seed), profile] + [s.replace("=", "_") for s in sim_sets]
+                   + ([] if laps == 2 else [f"laps{laps}"]))
     out = CACHE / tag
     if not (out / f"lap{laps}" / "ground_truth.json").is_file():
         import shutil
@@ -48,7 +51,7 @@ def house(scene: str, seed: int, sim_sets=(), laps: int = 2) -> Path:
         for s in sim_sets:
             k, v = s.split("=", 1)
             opts[k] = float(v) if "." in v else int(v)
-        simulate(out, scene=scene, laps=laps, seed=seed, **opts)
+        simulate(out, scene=scene, laps=laps, seed=seed, profile=profile, **opts)
     return out
 
 
@@ -145,6 +148,8 @@ def main():
     ap.add_argument("--scene", default="small")
     ap.add_argument("--first-seed", type=int, default=101)
     ap.add_argument("--laps", type=int, default=2, help="laps per simulated house (ingested one after the other)")
+    ap.add_argument("--profile", choices=["realistic", "benign"], default="realistic",
+                    help="the simulator's profile (default realistic)")
     ap.add_argument("--config", help="ltc config file (e.g. docs/paper.yaml for the paper's behaviour)")
     ap.add_argument("--set", dest="sets", action="append", default=[], help="ltc config override")
     ap.add_argument("--sim", dest="sim", action="append", default=[], help="simulator option override")
@@ -154,8 +159,9 @@ def main():
     args = ap.parse_args()
     combos = COMBOS if args.combos == "all" else [tuple(c.split("/")) for c in args.combos.split(",")]
     t0 = time.time()
-    houses = [house(args.scene, args.first_seed + i, args.sim, args.laps) for i in range(args.houses)]
-    print(f"{args.houses} simulated '{args.scene}' houses (seeds {args.first_seed}..{args.first_seed + args.houses - 1}), "
+    houses = [house(args.scene, args.first_seed + i, args.sim, args.laps, args.profile) for i in range(args.houses)]
+    print(f"{args.houses} simulated '{args.scene}' houses ({args.profile} profile, "
+          f"seeds {args.first_seed}..{args.first_seed + args.houses - 1}), "
           f"{args.laps} laps each; prepared in {time.time() - t0:.0f} s; config: {args.config or 'defaults'}; "
           f"v_Other: {'calibrated per house on lap 1' if args.calibrate else 'from the config'}; "
           f"overrides: {args.sets or 'none'}")

@@ -298,9 +298,15 @@ def render_cmd(map_path, output, ground_truth, width, height, labels):
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @click.option("--width", type=click.IntRange(min=16), default=640, show_default=True)
 @click.option("--height", type=click.IntRange(min=16), default=480, show_default=True)
+@click.option("--profile", type=click.Choice(["realistic", "benign"]), default="realistic", show_default=True,
+              help="realistic: the failure modes of real data (pose drift, per-class and correlated misses, "
+                   "systematic mislabels, recurring phantoms, CNN-like masks, depth holes and flying pixels, "
+                   "varied sizes, people walking through); benign: independent per-frame detector noise and "
+                   "exact poses (how sample_data/ was made). See docs/simulator.md.")
 @click.option("--set", "sets", multiple=True, metavar="OPTION=VALUE",
-              help="A simulator option, e.g. --set miss_rate=0.3 (see ltc_cli.simulate.DEFAULTS).")
-def simulate(outdir, scene, laps, seed, width, height, sets):
+              help="A simulator option over the profile's, e.g. --set miss_rate=0.3 or --set people_per_room=0 "
+                   "(see docs/simulator.md).")
+def simulate(outdir, scene, laps, seed, width, height, profile, sets):
     """Write a synthetic house as ltc-recording/1 folders OUTDIR/lap1, lap2, ..."""
     from ltc_cli.config import parse_set
     from ltc_cli.tools.simulate import simulate as run_simulate
@@ -308,10 +314,11 @@ def simulate(outdir, scene, laps, seed, width, height, sets):
     options = {}
     for item in sets:
         options.update(parse_set(item))
-    summary = run_simulate(outdir, scene=scene, laps=laps, seed=seed, width=width, height=height, **options)
+    summary = run_simulate(outdir, scene=scene, laps=laps, seed=seed, width=width, height=height, profile=profile,
+                           **options)
     frames = sum(lap["frames"] for lap in summary["laps"])
     click.echo(f"{outdir}: {_plural(len(summary['laps']), 'lap')} of the {scene} house (seed {seed}), "
-               f"{frames} frames, {summary['bytes'] / 1e6:.1f} MB")
+               f"{profile} profile, {frames} frames, {summary['bytes'] / 1e6:.1f} MB")
 
 
 def _fmt(v, spec=".3f"):

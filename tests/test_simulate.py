@@ -10,13 +10,18 @@ import numpy as np
 import pytest
 import yaml
 from PIL import Image
+from scipy.spatial.transform import Rotation
 
+import ltc_cli.recordings.writer as rec_writer
 from ltc_cli.recordings import rle
 from ltc_cli.errors import LtcError
 from ltc_cli.geometry.camera import pose_matrix
 from ltc_cli.tools.simulate import CLASSES, simulate
 from ltc_cli.tools.simulate import House as _House
 from ltc_cli.tools.simulate import camera_path as _path
+from ltc_cli.tools.simulate import DEFAULTS, PROFILES, House
+from ltc_cli.tools.simulate.sensor import flying_pixels, holes
+from ltc_cli.tools.simulate.views import SYSTEMATIC, ViewModel, cnn_mask
 
 SCHEMAS = Path(__file__).resolve().parents[1] / "schemas"
 W, H = 160, 120
@@ -309,3 +314,304 @@ def test_last_lap_map_shows_ghosts_of_the_changes(noisy):
     moved_matched = {m["map_id"] for m in r["matches"]} & set(ch["moved"])
     assert set(r["ghost_ids"]) == stale - moved_matched
     assert r["fn"] == len(ch["added"]) + len(set(ch["moved"]) - moved_matched)
+
+
+# -- the realistic profile (issue 9) ------------------------------------------------------------
+
+REAL = PROFILES["realistic"]
+
+
+@pytest.fixture(scope="module")
+def realistic(tmp_path_factory):
+    """The tiny house of the ``noisy`` fixture (same seed, size and path), realistic profile."""
+    out = tmp_path_factory.mktemp("realistic")
+    return out, simulate(out, scene="tiny", laps=2, seed=5, width=W, height=H, profile="realistic")
+
+
+def _instances(lap: Path):
+    """(frame id, annotation image, depth in metres, instances with decoded masks) per frame."""
+    for det_file in sorted((lap / "detections").glob("*.json")):
+        fid = det_file.stem
+        insts = json.loads(det_file.read_text())["instances"]
+        for inst in insts:
+            inst["mask"] = rle.decode(inst["mask"])
+        yield (fid, _png(lap / "annotations" / f"{fid}.png"),
+               _png(lap / "depth" / f"{fid}.png").astype(np.float64) / 1000.0, insts)
+
+
+def test_realistic_poses_drift_within_the_set_bounds(noisy, realistic):
+    """poses.txt = the true pose (the benign run's, same seed) moved by the localiser's error: within
+    2.5 std of the drift plus 3 std of the jitter on every axis, a few cm, slowly varying, and drawn
+    anew every lap; the images still come from the true pose."""
+    (bout, _), (rout, _) = noisy, realistic
+    bound_xy = 2.5 * REAL["pose_drift_m"] + 3 * REAL["pose_jitter_m"]  # 0.115 m
+    bound_yaw = math.radians(2.5 * REAL["pose_drift_deg"] + 3 * REAL["pose_jitter_deg"])  # 4.35 deg
+    errors = []
+    for lap in ("lap1", "lap2"):
+        true, written = _read_poses(bout / lap), _read_poses(rout / lap)
+        assert sorted(true) == sorted(written)
+        e = np.array([written[f][:3, 3] - true[f][:3, 3] for f in sorted(true)])
+        rotvec = np.array([(Rotation.from_matrix(written[f][:3, :3]) * Rotation.from_matrix(true[f][:3, :3]).inv())
+                           .as_rotvec() for f in sorted(true)])
+        assert np.abs(e[:, :2]).max() <= bound_xy + 1e-9
+        assert np.abs(e[:, 2]).max() <= bound_xy / 4 + 1e-9
+        assert np.abs(rotvec[:, 2]).max() <= bound_yaw + 1e-9
+        assert np.abs(rotvec[:, :2]).max() <= bound_yaw / 3 + 1e-9
+        rms = float(np.sqrt((e[:, :2] ** 2).sum(axis=1).mean()))
+        assert 0.005 < rms  # a real error, not rounding
+        # Slow: frame-to-frame changes are well under the error itself.
+        step = float(np.sqrt((np.diff(e[:, :2], axis=0) ** 2).sum(axis=1).mean()))
+        assert step < 0.5 * rms, (step, rms)
+        errors.append(e)
+    assert not np.allclose(errors[0], errors[1])
+    # Rendered from the true pose: the same camera sees the walls and floor at the same depth (the
+    # furniture differs: its sizes vary).
+    for fid in ("000000", "000006"):
+        d_b, d_r = (_png(o / "lap1" / "depth" / f"{fid}.png").astype(float) for o in (bout, rout))
+        a_b, a_r = (_png(o / "lap1" / "annotations" / f"{fid}.png") for o in (bout, rout))
+        both = (d_b > 0) & (d_r > 0) & (a_b == 0) & (a_r == 0)
+        assert both.mean() > 0.3 and np.median(np.abs(d_b[both] - d_r[both])) < 30  # mm: sensor noise
+
+
+def test_realistic_people_are_detected_and_never_ground_truth(realistic):
+    out, _ = realistic
+    schema = json.loads((SCHEMAS / "ground_truth.schema.json").read_text())
+    det_schema = json.loads((SCHEMAS / "detections.schema.json").read_text())
+    person_frames = 0
+    for lap in (out / "lap1", out / "lap2"):
+        meta = yaml.safe_load((lap / "recording.yaml").read_text())
+        assert meta["simulator"]["profile"] == "realistic" and "person" in meta["classes"]
+        gt = _gt(lap)
+        jsonschema.validate(gt, schema)
+        assert all(o["class"] != "person" for o in gt["objects"])
+        ids = {o["id"] for o in gt["objects"]}
+        for fid, ann, depth, insts in _instances(lap):
+            assert set(np.unique(ann[ann > 0]).tolist()) <= ids  # people and phantoms not annotated
+            jsonschema.validate(json.loads((lap / "detections" / f"{fid}.json").read_text()), det_schema)
+            for inst in insts:
+                if inst["class"] == "person" and (ann[inst["mask"]] == 0).mean() > 0.5:
+                    # A person is a moving thing with depth, standing inside the room.
+                    assert (depth[inst["mask"]] > 0).mean() > 0.3
+                    person_frames += 1
+    assert person_frames >= 2
+
+
+def test_realistic_same_seed_same_bytes(realistic, tmp_path):
+    out, _ = realistic
+    again = tmp_path / "again"
+    simulate(again, scene="tiny", laps=2, seed=5, width=W, height=H, profile="realistic")
+    assert _hashes(again) == _hashes(out)
+    other = tmp_path / "other"
+    simulate(other, scene="tiny", laps=1, seed=6, width=W, height=H, profile="realistic")
+    assert _hashes(other)["lap1/poses.txt"] != _hashes(out)["lap1/poses.txt"]
+
+
+def test_benign_profile_is_the_default_and_writes_no_realism(noisy):
+    out, _ = noisy
+    meta = yaml.safe_load((out / "lap1" / "recording.yaml").read_text())
+    assert "profile" not in meta["simulator"]
+    assert "people_per_room" not in meta["simulator"]["options"] and "person" not in meta["classes"]
+
+
+@pytest.fixture(scope="module")
+def phantom_lap(tmp_path_factory):
+    """One long lap of the tiny house, realistic, with two phantoms (a poster and clutter), no
+    people and no one-off false positives: every detection mostly off the annotated objects is a
+    phantom's."""
+    out = tmp_path_factory.mktemp("phantoms")
+    simulate(out, scene="tiny", laps=1, seed=5, width=W, height=H, profile="realistic", frames_per_room=40,
+             people_per_room=0, false_positive_rate=0, split_rate=0, phantoms_per_room=2)
+    return out / "lap1"
+
+
+def test_realistic_phantoms_recur_at_one_place(phantom_lap):
+    lap = phantom_lap
+    cam = _camera(lap)
+    poses = _read_poses(lap)
+    v, u = np.mgrid[0:H, 0:W]
+    found = {}
+    for fid, ann, depth, insts in _instances(lap):
+        for inst in insts:
+            m = inst["mask"]
+            if (ann[m] > 0).mean() >= 0.3:
+                continue
+            sel = m & (depth > 0)
+            z = depth[sel]
+            pc = np.stack([z * (u[sel] - cam["cx"]) / cam["fx"], z * (v[sel] - cam["cy"]) / cam["fy"], z], 1)
+            T = poses[fid]
+            found.setdefault(inst["class"], []).append((fid, np.median(pc @ T[:3, :3].T + T[:3, 3], axis=0)))
+    # A poster taken for a tv and clutter taken for a book, each in several frames, always at the
+    # same place (within the localiser's error and the mask's spread): not one-off blobs.
+    assert {"tv", "book"} <= set(found), found.keys()
+    for cls in ("tv", "book"):
+        frames = {f for f, _ in found[cls]}
+        assert len(frames) >= 4, (cls, frames)
+        pts = np.array([p for _, p in found[cls]])
+        assert np.linalg.norm(pts - np.median(pts, axis=0), axis=1).max() < 0.35
+
+
+def _detection_states(lap: Path, min_px: int) -> dict:
+    """{object id: [(frame index, detected?)]} over the frames where it has min_px annotated pixels;
+    detected = some instance's mask is exactly its annotated pixels (masks are exact here)."""
+    states = {}
+    for k, (fid, ann, _, insts) in enumerate(_instances(lap)):
+        masks = [inst["mask"] for inst in insts]
+        ids, counts = np.unique(ann[ann > 0], return_counts=True)
+        for oid, n in zip(ids.tolist(), counts.tolist()):
+            if n >= min_px:
+                hit = any(np.array_equal(m, ann == oid) for m in masks)
+                states.setdefault(oid, []).append((k, hit))
+    return states
+
+
+MISSES = dict(PERFECT, miss_rate=0.15, class_miss=1.0, oblique_miss=REAL["oblique_miss"])
+
+
+@pytest.fixture(scope="module")
+def miss_laps(tmp_path_factory):
+    """Two long laps of the tiny house whose only detector noise is misses with per-class rates:
+    independent per frame, and correlated over nearby views."""
+    out = tmp_path_factory.mktemp("misses")
+    common = dict(scene="tiny", laps=2, seed=8, width=W, height=H, frames_per_room=72, **MISSES)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rec_writer, "PNG_LEVEL", 1)  # fast PNGs: same pixels
+        simulate(out / "indep", **common)
+        simulate(out / "corr", view_correlation=0.95, **common)
+    return [out / "indep" / f"lap{k}" for k in (1, 2)], [out / "corr" / f"lap{k}" for k in (1, 2)]
+
+
+def _min_pixels(lap: Path) -> int:
+    return yaml.safe_load((lap / "recording.yaml").read_text())["simulator"]["options"]["min_pixels"]
+
+
+def test_realistic_tvs_are_missed_more_often_than_chairs(miss_laps):
+    rate = {}
+    for lap in miss_laps[0]:
+        gt = {o["id"]: o["class"] for o in _gt(lap)["objects"]}
+        for oid, seq in _detection_states(lap, _min_pixels(lap)).items():
+            seen, missed = rate.get(gt[oid], (0, 0))
+            rate[gt[oid]] = (seen + len(seq), missed + sum(not h for _, h in seq))
+    tv, chair = (rate[c][1] / rate[c][0] for c in ("tv", "chair"))
+    # tv: 2x the base rate plus up to oblique_miss when seen at an angle; chair: the base rate.
+    assert rate["tv"][0] >= 20 and rate["chair"][0] >= 40, rate
+    assert tv > chair + 0.15, (rate, tv, chair)
+
+
+def test_realistic_misses_persist_over_nearby_views(miss_laps):
+    """Far fewer switches between detected and missed from one view of an object to the next."""
+    result = []
+    for laps in miss_laps:
+        switches = pairs = 0
+        for lap in laps:
+            for seq in _detection_states(lap, _min_pixels(lap)).values():
+                for (k0, h0), (k1, h1) in zip(seq[:-1], seq[1:]):
+                    if k1 == k0 + 1:
+                        pairs += 1
+                        switches += h0 != h1
+        result.append(switches / pairs)
+    assert pairs > 100 and result[1] < 0.6 * result[0], result
+
+
+def test_correlated_draws_stay_uniform():
+    """The correlated draw is uniform whatever the correlation (so every rate is unchanged), and
+    consecutive frames' draws of one object agree far more with it than without."""
+    n_obj, n_frames = 300, 40
+    things = {i: ("chair", "object", np.zeros(3), 0.0) for i in range(1, n_obj + 1)}
+    u_all = {}
+    for rho in (0.0, 0.9):
+        opts = dict(DEFAULTS, view_correlation=rho)
+        model = ViewModel(opts, seed=1, lap=1, n_frames=n_frames, things=things)
+        rng = np.random.default_rng(2)
+        u = np.array([[model.frame(k, np.eye(4), rng).uniform(i, rng.uniform(), 0) for k in range(n_frames)]
+                      for i in things])
+        hist = np.histogram(u, bins=10, range=(0, 1))[0] / u.size
+        assert np.abs(hist - 0.1).max() < 0.02, (rho, hist)  # 12000 draws: 0.1 +- 0.003 std
+        u_all[rho] = u
+    lag = {rho: np.corrcoef(u[:, :-1].ravel(), u[:, 1:].ravel())[0, 1] for rho, u in u_all.items()}
+    assert abs(lag[0.0]) < 0.05 and lag[0.9] > 0.6, lag
+
+
+def test_realistic_systematic_mislabels_use_one_other_class(tmp_path):
+    """Every object with a systematic other class (mislabel_objects = 1) is called by it in some
+    views and by its own class in the others, never by a third class (no other confusion here)."""
+    simulate(tmp_path, scene="tiny", laps=1, seed=2, width=W, height=H, frames_per_room=30,
+             **dict(PERFECT, mislabel_objects=1.0, mislabel_share=0.4))
+    lap = tmp_path / "lap1"
+    gt = {o["id"]: o["class"] for o in _gt(lap)["objects"]}
+    labels = {}
+    for _, ann, _, insts in _instances(lap):
+        for inst in insts:
+            oid = int(np.bincount(ann[inst["mask"]]).argmax())
+            labels.setdefault(oid, []).append(inst["class"])
+    table = next(i for i, c in gt.items() if c == "dining table")
+    assert set(labels[table]) == {"dining table", "book"}  # a table called book in some views
+    for oid, seen in labels.items():
+        assert set(seen) <= {gt[oid], SYSTEMATIC[gt[oid]]}
+        if len(seen) >= 6:
+            assert 0 < seen.count(SYSTEMATIC[gt[oid]]) < len(seen), (gt[oid], seen)
+
+
+def test_cnn_mask_fills_a_chair_back_and_drops_its_legs():
+    m = np.zeros((120, 160), bool)
+    m[60:64, 40:80] = True  # seat
+    m[64:100, 40:43] = m[64:100, 77:80] = True  # legs, 3 px wide
+    m[20:60, 40:43] = m[20:60, 77:80] = True  # back posts
+    m[20:25, 40:80] = m[38:42, 40:80] = True  # top and middle rails
+    c = cnn_mask(m)
+    assert c[30, 45:75].all() and c[50, 45:75].all()  # the gaps of the back are filled
+    assert not c[80:100, 40:43].any() and not c[80:100, 77:80].any()  # the legs are gone
+    assert c[62, 45:75].all()  # the seat stays
+    assert not c[:15].any() and not c[:, :35].any() and not c[:, 85:].any()  # no growth beyond the box
+
+
+def test_depth_edges_fly_and_dark_surfaces_lose_readings():
+    rng = np.random.default_rng(0)
+    z = np.where(np.arange(40)[None, :] < 20, 1.0, 3.0) * np.ones((30, 1))
+    hit = np.ones_like(z, dtype=bool)
+    f = flying_pixels(rng, z, hit, 1.0)
+    edge = np.zeros_like(hit)
+    edge[:, 19:21] = True
+    assert ((f[edge] > 1.0) & (f[edge] < 3.0)).all()  # between the two surfaces, in the air
+    assert (f[~edge] == z[~edge]).all()
+    p = np.zeros((120, 160))
+    p[:, 80:] = 0.5
+    lost = holes(rng, p)
+    assert not lost[:, :80].any()
+    assert 0.35 < lost[:, 80:].mean() < 0.65
+    assert holes(rng, np.ones((20, 20))).all()
+
+
+def test_realistic_sizes_vary_within_a_class():
+    """A fridge is always 0.75 m deep (0.7 m body + handle) in the benign house, and within
+    +-size_variation of that with it."""
+    v = REAL["size_variation"]
+    depths = {0.0: [], v: []}
+    for seed in range(6):
+        for var in depths:
+            house = House("small", np.random.default_rng([seed, 1]), np.random.default_rng([seed, 2]), var)
+            depths[var] += [o.box()[2][0] for o in house.objects.values() if o.cls == "refrigerator"]
+    assert len(depths[0.0]) >= 4 and np.allclose(depths[0.0], 0.75)
+    assert all(0.75 * (1 - v) - 1e-9 <= d <= 0.75 * (1 + v) + 1e-9 for d in depths[v])
+    assert np.ptp(depths[v]) > 0.05
+
+
+def test_cli_profile_default_is_realistic(tmp_path):
+    from click.testing import CliRunner
+
+    from ltc_cli.cli import cli
+
+    for args, profile in (([], "realistic"), (["--profile", "benign"], None)):
+        out = tmp_path / (profile or "benign")
+        r = CliRunner().invoke(cli, ["simulate", str(out), "--scene", "tiny", "--laps", "1", "--width", "64",
+                                     "--height", "48", "--set", "frames_per_room=3", *args])
+        assert r.exit_code == 0, r.output
+        meta = yaml.safe_load((out / "lap1" / "recording.yaml").read_text())
+        assert meta["simulator"].get("profile") == profile
+
+
+@pytest.mark.parametrize("kwargs", [{"profile": "harsh"}, {"cnn_masks": 0.5}, {"view_correlation": 1.5},
+                                    {"drift_frames": 0}, {"people_per_room": -1}, {"pose_drift_m": -0.1}])
+def test_bad_realism_options(tmp_path, kwargs):
+    with pytest.raises(LtcError):
+        simulate(tmp_path / "x", scene="tiny", **kwargs)
+    assert not (tmp_path / "x").exists()

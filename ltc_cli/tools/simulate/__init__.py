@@ -20,13 +20,20 @@ shading images), sensor.py (depth noise and quantisation, colour noise), detecto
 detector's misses, confusions, bleeding masks, splits and false positives), laps.py (the lap loop),
 written by ltc_cli.recordings.writer. Everything random is drawn from numpy Generators seeded by
 (seed, lap, frame), so a seed gives byte-identical files.
+
+Profiles (options.PROFILES): ``benign`` (the default of :func:`simulate`) is the simulator above;
+``realistic`` (the default of ``ltc simulate``) adds the failure modes of real data, each an option
+of its own (docs/simulator.md): a localiser's pose drift in poses.txt (drift.py), per-class,
+angle-dependent and view-correlated misses, systematic mislabels and CNN-like masks (views.py),
+recurring phantoms (phantoms.py), people walking through (people.py), depth holes and flying pixels
+(sensor.py) and sizes varying within a class (house.py); extras.py gathers them per lap.
 """
 
 from ltc_cli.tools.simulate.house import House
 from ltc_cli.tools.simulate.laps import OutputExistsError, simulate
-from ltc_cli.tools.simulate.options import CLASSES, CONFUSABLE, DEFAULTS, SCENES
+from ltc_cli.tools.simulate.options import CLASSES, CONFUSABLE, DEFAULTS, PROFILES, SCENES
 from ltc_cli.tools.simulate.path import camera_path
 from ltc_cli.tools.simulate.raycast import Renderer
 
-__all__ = ["CLASSES", "CONFUSABLE", "DEFAULTS", "SCENES", "House", "OutputExistsError", "Renderer",
+__all__ = ["CLASSES", "CONFUSABLE", "DEFAULTS", "PROFILES", "SCENES", "House", "OutputExistsError", "Renderer",
            "camera_path", "simulate"]

@@ -42,7 +42,7 @@ def change_house(house: House, rng: np.random.Generator, moved_f, removed_f, add
         else:
             room = house.rooms[int(rng.integers(len(house.rooms)))]
             cls = ADDABLE_FLOOR[int(rng.integers(len(ADDABLE_FLOOR)))]
-            parts = recenter(chair_parts(rng) if cls == "chair" else plant_parts(rng))
+            parts = house.vary(recenter(chair_parts(rng) if cls == "chair" else plant_parts(rng)))
             lo, hi = parts_aabb(parts)
             spot = house.place_on_wall(room, hi[0] - lo[0], hi[1] - lo[1], None, house.floor_blocked(room))
             obj = None if spot is None else house.add_object(cls, room, parts, spot[0], 0.0, spot[1])

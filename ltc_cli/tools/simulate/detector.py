@@ -15,12 +15,15 @@ import numpy as np
 from scipy import ndimage
 
 from ltc_cli.tools.simulate.options import CONFUSABLE
+from ltc_cli.tools.simulate.views import CONFUSION, MISS
 
-def detect(rng, inst, depth_m, stats, classes_of, classes, opts, min_pixels):
+def detect(rng, inst, depth_m, stats, classes_of, classes, opts, min_pixels, views=None):
     """Instances of one frame from the true visible instance image inst (H, W) (object id, 0 none).
 
     depth_m (H, W): the depth written (metres, 0 = none); stats: per object id, its unoccluded
     pixel count and unclipped projected bounds (from the renderer); classes_of: object id -> class.
+    views: None (every miss and confusion independent, one miss rate for every class), or a
+    views.FrameViews (the realistic failure modes; rng's draws stay the same either way).
     Returns a list of (class, score, {class: score}, mask (H, W) bool), sorted by score.
     """
     H, W = inst.shape
@@ -43,13 +46,21 @@ def detect(rng, inst, depth_m, stats, classes_of, classes, opts, min_pixels):
         # The base rate, up to 3x for a mostly hidden or cut object, 2.5x beyond 6 m, 3x near the
         # pixel minimum; miss_rate 0 is a detector that never misses.
         p_miss = opts["miss_rate"] * (1 + 2.0 * (1 - visible_frac) + 1.5 * far + 2.0 * small)
-        if rng.uniform() < min(0.97, p_miss):
+        u = rng.uniform()
+        if views is not None:
+            p_miss, u = views.miss_probability(oid, p_miss), views.uniform(oid, u, MISS)
+        if u < min(0.97, p_miss):
             continue
         true_cls = classes_of[oid]
         cls = true_cls
         partner = CONFUSABLE.get(true_cls, ())
-        if rng.uniform() < opts["confusion_rate"] * (1 + (1 - visible_frac)):
+        u = rng.uniform()
+        if views is not None:
+            u = views.uniform(oid, u, CONFUSION)
+        if u < opts["confusion_rate"] * (1 + (1 - visible_frac)):
             cls = partner[int(rng.integers(len(partner)))] if partner else classes[int(rng.integers(len(classes)))]
+        alt = None if views is None else views.systematic_label(oid)
+        cls = alt or cls
         score = float(rng.uniform(0.62, 0.99)) - 0.2 * (1 - visible_frac) - 0.08 * small
         if cls != true_cls:
             score -= 0.08
@@ -67,6 +78,8 @@ def detect(rng, inst, depth_m, stats, classes_of, classes, opts, min_pixels):
             grown = ndimage.binary_dilation(mask[v0:v1, u0:u1], structure=cross, iterations=k)
             mask = np.zeros((H, W), dtype=bool)
             mask[v0:v1, u0:u1] = grown
+        if views is not None:
+            mask = views.shape_mask(mask)
         masks = [mask]
         if n > 4 * min_pixels and rng.uniform() < opts["split_rate"]:
             # Over-segmentation: the mask cut in two across its longer side.

@@ -205,24 +205,31 @@ def small_parts(rng, cls):
     raise ValueError(cls)
 
 
-def item_members(rng, kind, params):
+def item_members(rng, kind, params, vary=None):
     """Members of a furniture item in its group frame: (cls | None, parts, (x, y, yaw), base_z,
-    surface). cls None is structure (a cabinet: drawn, no class); surface: it holds small things."""
+    surface). cls None is structure (a cabinet: drawn, no class); surface: it holds small things.
+    vary(parts) -> parts changes the size of each object (None: as modelled)."""
+    if vary is None:
+        def vary(parts):
+            return parts
     if kind in ("dining", "desk"):
         if kind == "dining":
             L, W = float(rng.uniform(1.2, 1.5)), float(rng.uniform(0.75, 0.88))
         else:
             L, W = float(rng.uniform(1.0, 1.3)), float(rng.uniform(0.6, 0.7))
-        members = [("dining table", recenter(table_parts(rng, L, W)), (0.0, 0.0, 0.0), 0.0, True)]
+        table = vary(recenter(table_parts(rng, L, W)))
+        lo, hi = parts_aabb(table)
+        W, L = float(hi[0] - lo[0]), float(hi[1] - lo[1])  # as modelled, or as varied
+        members = [("dining table", table, (0.0, 0.0, 0.0), 0.0, True)]
         for k in range(params.get("end_chairs", 0)):
-            chair = recenter(chair_parts(rng))
+            chair = vary(recenter(chair_parts(rng)))
             d = parts_aabb(chair)[1][0] - parts_aabb(chair)[0][0]
             sy = 1 if k == 0 else -1
             # A chair at an end of the table, facing it (its front, +x, points at the table).
             members.append(("chair", chair, (0.0, sy * (L / 2 + 0.06 + d / 2), -sy * math.pi / 2), 0.0, False))
         n_side = params.get("side_chairs", 0)
         for k in range(n_side):
-            chair = recenter(chair_parts(rng))
+            chair = vary(recenter(chair_parts(rng)))
             d = parts_aabb(chair)[1][0] - parts_aabb(chair)[0][0]
             y = (k + 0.5) / n_side * L - L / 2
             members.append(("chair", chair, (W / 2 + 0.06 + d / 2, y, math.pi), 0.0, False))
@@ -240,9 +247,9 @@ def item_members(rng, kind, params):
     }
     if kind in simple:
         cls, model = simple[kind]
-        return [(cls, recenter(model(rng)), (0.0, 0.0, 0.0), 0.0, False)]
+        return [(cls, vary(recenter(model(rng))), (0.0, 0.0, 0.0), 0.0, False)]
     if kind == "tv":
-        tv = recenter(tv_parts(rng))
+        tv = vary(recenter(tv_parts(rng)))
         tv_w = parts_aabb(tv)[1][1] - parts_aabb(tv)[0][1]
         # Room beside the tv for a thing or two on the cabinet.
         cab = [part((0, 0, 0.25), (0.45, tv_w + float(rng.uniform(0.7, 1.0)), 0.5), CABINET_COLOR)]
@@ -255,5 +262,5 @@ def item_members(rng, kind, params):
         return [(None, [part((0, 0, 0.9), (0.35, 0.9, 1.8), CABINET_COLOR)], (0.0, 0.0, 0.0), 0.0, False)]
     if kind == "sink_counter":
         cab = [part((0, 0, 0.36), (0.6, 0.8, 0.72), CABINET_COLOR)]
-        return [(None, cab, (0.0, 0.0, 0.0), 0.0, False), ("sink", recenter(basin_parts()), (0.0, 0.0, 0.0), 0.72, False)]
+        return [(None, cab, (0.0, 0.0, 0.0), 0.0, False), ("sink", vary(recenter(basin_parts())), (0.0, 0.0, 0.0), 0.72, False)]
     raise ValueError(kind)

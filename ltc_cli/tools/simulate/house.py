@@ -19,9 +19,12 @@ from ltc_cli.tools.simulate.scene import (
 class House:
     """Rooms, walls, structure (cabinets: no class), surfaces and the objects of one lap."""
 
-    def __init__(self, scene: str, rng: np.random.Generator):
+    def __init__(self, scene: str, rng: np.random.Generator, size_rng: np.random.Generator | None = None,
+                 size_variation: float = 0.0):
         self.scene = scene
         self.rng = rng
+        self.size_rng = size_rng  # draws the size variation, so the house's own draws stay the same
+        self.size_variation = size_variation
         self.rooms: list[Room] = []
         self.order: list[int] = []  # the robot's room order
         self.door_list: list[tuple] = []  # (room a, side in a, room b, side in b, along)
@@ -220,7 +223,7 @@ class House:
 
 
     def _place_item(self, room, kind, sides, params):
-        members = item_members(self.rng, kind, params)
+        members = item_members(self.rng, kind, params, self.vary)
         # Footprint of the group in its frame, then centred.
         polys = []
         for cls, parts, (x, y, yaw), _, _ in members:
@@ -259,9 +262,17 @@ class House:
 
     def place_small(self, cls, surface_index, tries=60, exclude=None):
         """Put a new (or, with ``exclude`` = an object, that object) small object on a surface."""
-        rng = self.rng
         surf = self.surfaces[surface_index]
-        parts = recenter(small_parts(rng, cls)) if exclude is None else exclude.parts
+        parts = self.vary(recenter(small_parts(self.rng, cls))) if exclude is None else exclude.parts
+        spot = self.spot_on_surface(self.rng, surface_index, parts, exclude, tries)
+        if spot is None or exclude is not None:
+            return spot
+        return self.add_object(cls, self.rooms[surf.room], parts, spot[0], surf.z, spot[1], support=surface_index)
+
+    def spot_on_surface(self, rng, surface_index, parts, exclude=None, tries=60):
+        """A free spot (center_xy (2,), yaw) on a surface for parts, clear of what already stands on
+        it (but ``exclude``); None when none was found in ``tries``."""
+        surf = self.surfaces[surface_index]
         lo, hi = parts_aabb(parts)
         radius = 0.5 * float(np.hypot(*(hi - lo)[:2]))
         half = surf.size / 2 - radius - 0.03
@@ -277,11 +288,17 @@ class House:
             poly = rect(pos, yaw, (hi - lo)[:2])
             if any(overlap(poly, b) for b in blocked):
                 continue
-            if exclude is not None:
-                return pos, yaw
-            return self.add_object(cls, self.rooms[surf.room], parts, pos, surf.z, yaw, support=surface_index)
+            return pos, yaw
         return None
 
+    def vary(self, parts):
+        """parts scaled by a factor in [1 - v, 1 + v] along each axis (v = size_variation: objects of
+        one class differ in size); the same parts when v is 0."""
+        v = self.size_variation
+        if not v:
+            return parts
+        f = self.size_rng.uniform(1 - v, 1 + v, 3)
+        return [(o * f, s * f, c) for o, s, c in parts]
 
     def primitives(self):
         """Arrays of all boxes: center (P, 3), yaw (P,), size (P, 3), colour (P, 3), owner (P,)

@@ -51,8 +51,8 @@ SCENES = ("tiny", "small", "medium", "large")
 #: Frames of the loop in each room, per scene (option frames_per_room overrides it).
 FRAMES_PER_ROOM = {"tiny": 12, "small": 36, "medium": 36, "large": 36}
 
-#: Options of :func:`ltc_cli.tools.simulate.simulate` and their defaults.
-DEFAULTS = {
+#: Options of :func:`ltc_cli.tools.simulate.simulate` and their defaults: the ``benign`` profile.
+BASE_DEFAULTS = {
     # Depth sensor (structured light / stereo, Kinect-like): noise std in metres at 1 m, growing
     # with depth squared; spatially correlated over noise_block x noise_block pixels (the sensor
     # matches ~9x9 pixel windows, so neighbours share their errors; this also keeps the PNGs
@@ -83,19 +83,90 @@ DEFAULTS = {
     "camera_pitch_deg": 12.0,
 }
 
+#: The real failure modes (issue 9), all off by default; the ``realistic`` profile turns them on.
+#: Each is an option of its own (docs/simulator.md).
+REALISM_DEFAULTS = {
+    # Localisation: poses.txt holds the true pose moved by a slowly varying error (a Gaussian
+    # process along the path, correlation drift_frames frames, clipped at 2.5 std; z and the tilts
+    # get a quarter and a third of it) plus per-frame jitter; the images are rendered from the true
+    # pose, as a real localiser's estimate differs from where the camera really was.
+    "pose_drift_m": 0.0,
+    "pose_drift_deg": 0.0,
+    "pose_jitter_m": 0.0,
+    "pose_jitter_deg": 0.0,
+    "drift_frames": 15.0,
+    # Detector: per-class miss rates (weight of the table CLASS_MISS: 0 = one rate for every
+    # class), an extra miss probability for flat-faced classes seen at an angle (tv, sink,
+    # laptop), misses and mislabels correlated over correlation_frames nearby views of one object
+    # (view_correlation 0 = independent per frame), systematic mislabels (a share of objects
+    # labelled as one fixed other class in a share of their views), recurring phantoms (a poster
+    # seen as a tv, clutter on a table seen as a book) and CNN-like masks (on a 28 x 28 grid:
+    # gaps filled, thin legs dropped, outline smoothed; 0 or 1).
+    "class_miss": 0.0,
+    "oblique_miss": 0.0,
+    "view_correlation": 0.0,
+    "correlation_frames": 6.0,
+    "mislabel_objects": 0.0,
+    "mislabel_share": 0.0,
+    "phantoms_per_room": 0.0,
+    "cnn_masks": 0.0,
+    # Depth: no reading on dark and on shiny surfaces with these probabilities (in blobs), and
+    # flying pixels: this share of the pixels on a depth edge mixes foreground and background.
+    "dark_dropout": 0.0,
+    "shiny_dropout": 0.0,
+    "flying_pixels": 0.0,
+    # Scene: each furniture item scaled by up to +-size_variation along each axis (a fridge is not
+    # always 0.75 m deep); people walking through (class person, never in the ground truth).
+    "size_variation": 0.0,
+    "people_per_room": 0.0,
+}
+
+DEFAULTS = {**BASE_DEFAULTS, **REALISM_DEFAULTS}
+
+#: Option values of each profile over DEFAULTS. ``benign`` is the simulator as it was before
+#: issue 9 (byte-identical output); ``realistic`` is the accuracy benchmark's default.
+PROFILES = {
+    "benign": {},
+    "realistic": {
+        "pose_drift_m": 0.04,
+        "pose_drift_deg": 1.5,
+        "pose_jitter_m": 0.005,
+        "pose_jitter_deg": 0.2,
+        "class_miss": 1.0,
+        "oblique_miss": 0.5,
+        "view_correlation": 0.85,
+        "mislabel_objects": 0.25,
+        "mislabel_share": 0.35,
+        "phantoms_per_room": 1.0,
+        "cnn_masks": 1.0,
+        "dark_dropout": 0.5,
+        "shiny_dropout": 0.25,
+        "flying_pixels": 0.5,
+        "size_variation": 0.12,
+        "people_per_room": 1.0,
+    },
+}
+
 _UNIT = ("miss_rate", "confusion_rate", "false_positive_rate", "split_rate",
-         "moved_fraction", "removed_fraction", "added_fraction")
-_NON_NEGATIVE = ("depth_noise", "depth_resolution", "rgb_noise", "bleed_px", "min_range")
+         "moved_fraction", "removed_fraction", "added_fraction", "class_miss", "oblique_miss",
+         "view_correlation", "mislabel_objects", "mislabel_share", "dark_dropout", "shiny_dropout",
+         "flying_pixels")
+_NON_NEGATIVE = ("depth_noise", "depth_resolution", "rgb_noise", "bleed_px", "min_range", "pose_drift_m",
+                 "pose_drift_deg", "pose_jitter_m", "pose_jitter_deg")
 _POSITIVE = ("noise_block", "transit_step", "camera_height", "max_range")
+_AT_LEAST_ONE = ("drift_frames", "correlation_frames")
+_BOUNDED = {"size_variation": 0.5, "phantoms_per_room": 5, "people_per_room": 5}
 
 
-def check_options(options: dict) -> dict:
-    """The full option dict (defaults filled in) from the user's, checked; ConfigError naming the
-    option otherwise."""
+def check_options(options: dict, profile: str = "benign") -> dict:
+    """The full option dict (the profile's values over the defaults, then the user's), checked;
+    ConfigError naming the option otherwise."""
+    if profile not in PROFILES:
+        raise ConfigError(f"simulate: unknown profile {profile!r} (choose from {', '.join(PROFILES)})")
     unknown = sorted(set(options) - set(DEFAULTS))
     if unknown:
         raise ConfigError(f"unknown simulate option(s): {', '.join(unknown)} (known: {', '.join(DEFAULTS)})")
-    opts = dict(DEFAULTS)
+    opts = {**DEFAULTS, **PROFILES[profile]}
     for key, value in options.items():
         if value is None:
             opts[key] = None
@@ -116,6 +187,14 @@ def check_options(options: dict) -> dict:
     for key in _POSITIVE:
         if not opts[key] > 0:
             raise ConfigError(f"simulate option {key} must be > 0, not {opts[key]}")
+    for key in _AT_LEAST_ONE:
+        if not opts[key] >= 1:
+            raise ConfigError(f"simulate option {key} must be >= 1, not {opts[key]}")
+    for key, hi in _BOUNDED.items():
+        if not 0 <= opts[key] <= hi:
+            raise ConfigError(f"simulate option {key} must be within [0, {hi}], not {opts[key]}")
+    if opts["cnn_masks"] not in (0, 1):
+        raise ConfigError(f"simulate option cnn_masks must be 0 or 1, not {opts['cnn_masks']}")
     if opts["max_range"] <= opts["min_range"]:
         raise ConfigError("simulate option max_range must be above min_range")
     if not -60 <= opts["camera_pitch_deg"] <= 60:
@@ -133,6 +212,13 @@ def check_options(options: dict) -> dict:
     opts["bleed_px"] = int(round(opts["bleed_px"]))
     opts["noise_block"] = int(round(opts["noise_block"]))
     return opts
+
+
+def recorded_options(opts: dict) -> dict:
+    """The options written to recording.yaml: every base option, and the realism options when any
+    of them is on (so a benign recording's file is what it was before they existed)."""
+    on = any(opts[k] != v for k, v in REALISM_DEFAULTS.items())
+    return {k: v for k, v in opts.items() if k in BASE_DEFAULTS or on}
 
 
 def check_int(name, value, lo, hi) -> int:
