@@ -350,6 +350,8 @@ def test_ghost_of_any_earlier_lap():
     # Lists of objects work as laps too, and the changes are inferred from the boxes.
     r = evaluate(maps, lap3["objects"], previous_gt=[lap1["objects"], lap2["objects"]])
     assert r["ghost_ids"] == [11, 14]
+    r = evaluate(maps, lap3, previous_gt=[])
+    assert r["ghosts"] == 0 and r["earlier_laps"] == 0
 
 
 def test_former_places_tolerance():

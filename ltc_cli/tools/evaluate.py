@@ -201,7 +201,9 @@ def _earlier_laps(previous_gt) -> list:
     if isinstance(previous_gt, Mapping):
         return [_objects_and_changes(previous_gt)[0]]
     items = list(previous_gt)
-    if items and all((isinstance(x, Mapping) and "objects" in x) or isinstance(x, (list, tuple)) for x in items):
+    if not items:  # no earlier lap, or an empty one: no former places either way
+        return []
+    if all((isinstance(x, Mapping) and "objects" in x) or isinstance(x, (list, tuple)) for x in items):
         return [_objects_and_changes(x)[0] for x in items]
     return [_objects_and_changes(items)[0]]
 
@@ -302,14 +304,10 @@ def evaluate(
     ca, ya, sa = object_arrays(maps)
     cg, yg, sg = object_arrays(gts)
     iou, viou = pairwise_ious_arrays(ca, ya, sa, cg, yg, sg)
-    dist = (
-        np.linalg.norm(ca[:, None, :] - cg[None, :, :], axis=2) if M and G else np.zeros((M, G))
-    )
+    dist = np.linalg.norm(ca[:, None, :] - cg[None, :, :], axis=2) if M and G else np.zeros((M, G))
     same = np.array([[m.cls == g.cls for g in gts] for m in maps], dtype=bool).reshape(M, G)
     cand = same & (iou > 0) & (dist <= max_center_distance)
-    unseen = np.array(
-        [g.seen_pixels is not None and g.seen_pixels < min_seen_pixels for g in gts], dtype=bool
-    )
+    unseen = np.array([g.seen_pixels is not None and g.seen_pixels < min_seen_pixels for g in gts], dtype=bool)
     has_seen = any(g.seen_pixels is not None for g in gts)
 
     # Former places of objects in any earlier lap, for ghosts.
