@@ -329,8 +329,10 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             if summary.interrupted:
                 break
         k = plan.settings["maintenance"]["min_detections"]
-        if not summary.interrupted and summary.frames_done > 0 and k > 1:
-            summary.removed += mapper.prune_unconfirmed(k, -1, "end of session")
+        share = plan.settings["maintenance"]["min_detection_share"]
+        if not summary.interrupted and summary.frames_done > 0 and (k > 1 or share):
+            summary.removed += mapper.prune_unconfirmed(
+                k, -1, "end of session", plan.settings["maintenance"]["min_detection_share"])
     except BaseException as exc:  # commit what is done, then let the error go on
         error = exc
         if ahead is not None:  # stop the look-ahead before committing; its results are dropped

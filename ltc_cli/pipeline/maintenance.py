@@ -202,3 +202,12 @@ def new_view(last_views: np.ndarray, view: np.ndarray, min_move: float | None, m
         cos = np.clip(last_views[:, 3:] @ view[3:], -1.0, 1.0)
         fresh |= np.degrees(np.arccos(cos)) >= min_turn_deg
     return fresh
+
+
+def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min_share: float | None) -> np.ndarray:
+    """(M,) bool: objects too few detections confirm: fewer than ``min_detections``, or fewer than
+    ``min_share`` of the frames in which they were clearly visible (None: no share)."""
+    weak = n_det < min_detections
+    if min_share is not None:
+        weak |= n_det < min_share * n_clear
+    return weak

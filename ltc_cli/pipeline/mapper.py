@@ -22,7 +22,7 @@ from ltc_cli.pipeline.association import (
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
 from ltc_cli.pipeline.maintenance import (
-    camera_view, class_hit_counts, in_view, new_view, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
+    camera_view, class_hit_counts, in_view, new_view, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.modeling import model_detections
@@ -249,22 +249,27 @@ class Mapper:
             t.cols["nondet_view"][rows[missed]] = view
         return missed, vis_px >= need
 
-    def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
-        """End of a session: remove the tentative objects created in it, those that fewer than
-        ``min_detections`` detections saw.
+    def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
+                          min_share: float | None = None) -> int:
+        """End of a session: remove the tentative objects created in it that too few detections saw:
+        fewer than ``min_detections``, or (with ``min_share``) fewer than that share of the frames
+        in which it was clearly visible (:func:`~ltc_cli.pipeline.maintenance.unconfirmed`).
 
-        As a tracker confirms a track after a second hit: a detector's one-off false positive (a
-        confused class, a split mask, a blob on a wall) is seen once, a real object in a recording
-        is seen again. Objects of earlier sessions are not touched. Returns how many were removed.
+        As a tracker confirms a track after M hits in N chances: a detector's one-off false positive
+        (a confused class, a split mask, a blob on a wall) is seen once, a real object in a
+        recording is seen again. Objects of earlier sessions are not touched. Returns how many were
+        removed.
         """
         t = self.map.objects
-        rows = np.flatnonzero((t.status == ACTIVE) & (t.n_det < min_detections) & (t.first_session == self.session))
+        rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
+        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share)]
         for row in rows:
             self._touch(int(row))
             self._set_status(int(row), REMOVED)
             self._log(frame_index, frame_key, "removed", row + 1,
-                      detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) in the session that created it, "
-                              f"fewer than {min_detections}"))
+                      detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) in {int(t.n_clear[row])} clear views "
+                              f"in the session that created it (needs {min_detections}"
+                              + (f" and {min_share:.0%} of its clear views)" if min_share else ")")))
         self._settle()
         return len(rows)
 
