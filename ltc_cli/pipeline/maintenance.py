@@ -43,7 +43,7 @@ def ray_grid(intr: Intrinsics, step: int):
     return uu.ravel(), vv.ravel()
 
 
-def box_entry_depths(boxes: Boxes, T_map_camera: np.ndarray, intr: Intrinsics, u, v) -> np.ndarray:
+def box_entry_depths(boxes: Boxes, T_map_camera: np.ndarray, intr: Intrinsics, u, v, with_exit: bool = False):
     """Camera depth (M, P) where the ray of pixel (u, v) enters each box; inf where it misses.
 
     Slab test in each box's own frame. The ray directions have z = 1 in the camera frame, so the ray
@@ -70,7 +70,10 @@ def box_entry_depths(boxes: Boxes, T_map_camera: np.ndarray, intr: Intrinsics, u
             tmin = np.maximum(tmin, np.minimum(t1, t2))
             tmax = np.minimum(tmax, np.maximum(t1, t2))
     entry = np.maximum(tmin, 0.0)
-    return np.where(tmax >= entry, entry, np.inf)
+    hit = tmax >= entry
+    if with_exit:
+        return np.where(hit, entry, np.inf), np.where(hit, tmax, np.inf)
+    return np.where(hit, entry, np.inf)
 
 
 def pixel_counts(
@@ -81,8 +84,12 @@ def pixel_counts(
     step: int,
     depth_tolerance: float,
     depth_range: tuple[float, float],
+    with_empty: bool = False,
 ):
-    """Pixels of each box that the camera should see: (visible (M,), projected (M,)).
+    """Pixels of each box that the camera should see: (visible (M,), projected (M,)), and with
+    ``with_empty`` also empty (M,): those of the visible pixels whose observed depth lies beyond
+    the far side of the box by more than ``depth_tolerance`` (the camera saw through where the box
+    is: free space, whatever the detector says).
 
     ``projected`` counts the pixels of each box's image within the depth range, whatever hides
     them. ``visible`` counts those whose ray enters the box first among the given boxes (not hidden
@@ -92,14 +99,17 @@ def pixel_counts(
     """
     m = len(boxes)
     if m == 0:
-        return np.zeros(0), np.zeros(0)
+        return (np.zeros(0),) * (3 if with_empty else 2)
     u, v = ray_grid(intr, step)
-    entry = box_entry_depths(boxes, T_map_camera, intr, u, v)  # (M, P)
+    entry, exit_ = box_entry_depths(boxes, T_map_camera, intr, u, v, with_exit=True)  # (M, P)
     in_range = np.isfinite(entry) & (entry >= depth_range[0]) & (entry <= depth_range[1])
     first = entry <= entry.min(axis=0, keepdims=True)
     obs = depth_m[v.astype(int), u.astype(int)]
     seen = in_range & first & (obs > 0) & (obs >= entry - depth_tolerance)
     scale = float(step * step)
+    if with_empty:
+        empty = seen & (obs > exit_ + depth_tolerance)
+        return seen.sum(axis=1) * scale, in_range.sum(axis=1) * scale, empty.sum(axis=1) * scale
     return seen.sum(axis=1) * scale, in_range.sum(axis=1) * scale
 
 
@@ -211,3 +221,11 @@ def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min
     if min_share is not None:
         weak |= n_det < min_share * n_clear
     return weak
+
+
+def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None) -> np.ndarray:
+    """(M,) bool: objects whose visible pixels the camera mostly saw through (at least ``share`` of
+    them with observed depth beyond the box; None: never)."""
+    if share is None:
+        return np.zeros(np.shape(visible_px), dtype=bool)
+    return (np.asarray(visible_px) > 0) & (np.asarray(empty_px) >= share * np.asarray(visible_px))

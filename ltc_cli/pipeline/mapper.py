@@ -22,7 +22,7 @@ from ltc_cli.pipeline.association import (
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
 from ltc_cli.pipeline.maintenance import (
-    camera_view, class_hit_counts, in_view, new_view, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
+    camera_view, class_hit_counts, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.modeling import model_detections
@@ -192,14 +192,17 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)
+            missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)
             vectors = self.non_detection_vectors()
+            v_empty = self.cfg["maintenance"]["v_other_seen_empty"]
+            empty_vectors = non_detection_vectors(self.map.classes, v_empty, None) if v_empty is not None else vectors
             for row in rows[clear]:
                 self._touch(int(row))
                 self.map.objects.cols["n_clear"][row] += 1
-            for row in rows[missed]:
+            for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
-                res.removed += self._non_detection(int(row), vectors, frame_index, frame_key)
+                res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
+                                                   frame_key)
         t3 = clock()
 
         if self.cfg["association"]["merge"]:
@@ -234,20 +237,25 @@ class Mapper:
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range):
-        """(missed (M,), clear (M,)) bool over in-view rows: which get a non-detection, as the
-        maintenance policy decides, and which were clearly visible (enough pixels to say so)."""
+        """(missed (M,), clear (M,), empty (M,)) bool over in-view rows: which get a non-detection,
+        as the maintenance policy decides; which were clearly visible (enough pixels to say so); and
+        which of the missed ones the depth showed to be free space."""
         m_cfg = self.cfg["maintenance"]
-        vis_px, proj_px = pixel_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
-                                       m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range)
+        vis_px, proj_px, empty_px = pixel_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
+                                                 m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
+                                                 with_empty=True)
         scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
+        empty = missed & seen_empty(vis_px, empty_px, m_cfg["seen_empty_share"])
         if missed.any():
+            # A miss where the depth shows free space is not the detector's word but the camera's:
+            # it always counts. Others count from a new view only.
             t, view = self.map.objects, camera_view(T_map_camera)
-            missed &= new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
+            missed &= empty | new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
             t.cols["nondet_view"][rows[missed]] = view
-        return missed, vis_px >= need
+        return missed, vis_px >= need, empty
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
                           min_share: float | None = None) -> int:
