@@ -113,9 +113,11 @@ def _validate(cfg: dict) -> None:
         raise ConfigError("modeling.min_depth must be >= 0 and below modeling.max_depth")
     if m["clustering"] not in ("grid", "voxel", "dbscan"):
         raise ConfigError("modeling.clustering must be grid, voxel or dbscan")
-    for key in ("eps", "min_extent", "max_points", "min_samples"):
+    for key in ("eps", "min_extent", "max_points", "min_samples", "max_detections"):
         if m[key] <= 0:
             raise ConfigError(f"modeling.{key} must be positive")
+    if not isinstance(m["max_detections"], int):
+        raise ConfigError("modeling.max_detections must be a whole number")
     v = cfg["maintenance"]["v_other"]
     if not 0 < v < 1:
         raise ConfigError("maintenance.v_other must be between 0 and 1")

@@ -57,6 +57,31 @@ def pid_alive(pid: int | None) -> bool:
     return True
 
 
+def remove_temp_files(path) -> list[Path]:
+    """Remove every temporary file of ``path``; only for a writer holding the file's lock (then
+    no other process is writing it, and each one is the leftover of a killed writer)."""
+    removed = []
+    for tmp, _pid in temp_files_of(path):
+        try:
+            tmp.unlink()
+            removed.append(tmp)
+        except OSError:
+            pass  # not ours to remove (another user's): harmless, each writer uses its own name
+    return removed
+
+
+def stale_temp_files(path) -> list[tuple[Path, int]]:
+    """Temporary files of ``path`` whose writer is no longer running: (file, size in bytes)."""
+    out = []
+    for tmp, pid in temp_files_of(path):
+        if not pid_alive(pid):
+            try:
+                out.append((tmp, tmp.stat().st_size))
+            except OSError:
+                continue
+    return out
+
+
 def free_bytes(folder) -> int:
     """Bytes an unprivileged writer may still use on the filesystem of ``folder``."""
     st = os.statvfs(folder)
@@ -128,31 +153,21 @@ def write_bytes_atomic(path, data: bytes) -> None:
     temporary file is gone and ``path`` is as it was.
     """
     path = Path(path)
-    tmp = temp_path(path)
     need = len(data)
     free = free_bytes(path.parent)
     # A file takes whole blocks, plus one for its inode / extent records on most filesystems.
     block = max(os.statvfs(path.parent).f_frsize, 1)
     if -(-need // block) * block + block > free:
         raise NoSpaceError(need, free, path)
-    mode = _existing_mode(path)
-    try:
+    with atomic_target(path) as tmp:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o666)
         try:
-            if mode is not None:
-                os.fchmod(fd, mode)
             _reserve(fd, need)
             view = memoryview(data)
             while view:
                 view = view[os.write(fd, view):]
-            os.fsync(fd)
         finally:
             os.close(fd)
-        os.replace(tmp, path)
-    except BaseException:
-        _remove_quietly(tmp)
-        raise
-    _fsync_folder(path.parent)
 
 
 def _reserve(fd: int, size: int) -> None:

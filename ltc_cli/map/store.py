@@ -26,7 +26,8 @@ import numpy as np
 
 from ltc_cli import __version__
 from ltc_cli.errors import MapFormatError, MapLockedError, MapWriteError
-from ltc_cli.fileio import NoSpaceError, free_bytes, pid_alive, temp_files_of, temp_path, write_bytes_atomic
+from ltc_cli.fileio import (NoSpaceError, free_bytes, remove_temp_files, stale_temp_files, temp_path,
+                            write_bytes_atomic)
 from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT, REQUIRED, check_map_arrays
 from ltc_cli.map.model import COLUMNS, Event, ObjectTable, SemanticMap
 
@@ -49,7 +50,7 @@ def resolve_map_path(path) -> Path:
 
 
 def _mb(n: int) -> str:
-    return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e6:.2f} MB"
+    return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e6:.3g} MB"
 
 
 def _no_space(path, need: int, free: int) -> MapWriteError:
@@ -87,7 +88,7 @@ class MapLock:
         try:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
         except OSError as exc:
-            if not lock_existed and exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            if exc.errno == errno.EROFS or (not lock_existed and exc.errno in (errno.EACCES, errno.EPERM)):
                 raise _folder_not_writable(folder, exc) from None
             raise MapLockedError(f"cannot open the lock file ({exc.strerror})", self.path) from None
         try:
@@ -130,28 +131,9 @@ class MapLock:
         self.release()
 
 
-def remove_temp_files(path) -> list[Path]:
-    """Remove the temporary files of map ``path`` (call only while holding its lock)."""
-    removed = []
-    for tmp, _pid in temp_files_of(resolve_map_path(path)):
-        try:
-            tmp.unlink()
-            removed.append(tmp)
-        except OSError:
-            pass  # not ours to remove (another user's folder): harmless, the commit uses its own name
-    return removed
-
-
 def orphan_temp_files(path) -> list[tuple[Path, int]]:
     """Temporary files beside map ``path`` whose writer is gone: (file, size in bytes)."""
-    out = []
-    for tmp, pid in temp_files_of(resolve_map_path(path)):
-        if not pid_alive(pid):
-            try:
-                out.append((tmp, tmp.stat().st_size))
-            except OSError:
-                continue
-    return out
+    return stale_temp_files(resolve_map_path(path))
 
 
 def check_writable(path) -> None:
