@@ -17,6 +17,7 @@ import pytest
 import ltc_cli.fileio as fileio
 from ltc_cli.errors import MapLockedError
 from ltc_cli.map.store import MapLock, load_map
+from ltc_cli.pipeline import clustering
 from ltc_cli.pipeline.clustering import GROUPS_PER_PASS, dbscan_labels, grid_dbscan_labels, largest_clusters
 from ltc_cli.pipeline.mapper import Mapper
 from tests.reliability import (error_line, fill_to, many_instances, remount_read_only, run, sha256, temp_files,
@@ -60,6 +61,7 @@ def no_frame_mapped(monkeypatch):
 def test_a_full_disk_refuses_the_commit_in_one_line(house, lap1_map, tmp_path, monkeypatch, how):
     with tmpfs(tmp_path / "fs", 256) as fs:
         m = copy_map(lap1_map, fs)
+        (fs / "map.h5.lock").write_text("0")  # its page taken now, not after the filling
         size = m.stat().st_size
         # Room for a map as large as the old one (so the up-front check passes and lap 2 is mapped),
         # not for the larger map lap 2 makes.
@@ -73,7 +75,8 @@ def test_a_full_disk_refuses_the_commit_in_one_line(house, lap1_map, tmp_path, m
         line = error_line(r)
         match = NO_SPACE.match(line)
         assert match and match.group(1) == str(m), line
-        assert float(match.group(2)) > float(match.group(3))  # need > free
+        need, free = float(match.group(2)), float(match.group(3))
+        assert need > size / 1e6 and need > free  # the commit of the larger lap-2 map was refused
         assert sha256(m) == before
         assert temp_files(fs) == []  # nothing left to fill the disk
         assert len(load_map(m).sessions) == 1
@@ -216,8 +219,15 @@ def _blobs(n_groups, seed=0):
 
 
 @pytest.mark.parametrize("method", ["grid", "voxel", "dbscan"])
-def test_more_detections_than_one_pass_takes_cluster_as_each_alone(method):
+@pytest.mark.parametrize("limit", ["groups", "points", "key width"])
+def test_more_detections_than_one_pass_takes_cluster_as_each_alone(method, limit, monkeypatch):
     n = GROUPS_PER_PASS + 300  # two passes of the grid methods
+    if limit == "points":  # passes of at most 1,000 points (15 detections)
+        monkeypatch.setattr(clustering, "POINTS_PER_PASS", 1000)
+        n = 200
+    elif limit == "key width":  # 4 m of points need more than 2^5 cells: parts are halved
+        monkeypatch.setattr(clustering, "_AXIS_BITS", 5)
+        n = 60
     pts, group = _blobs(n)
     together = largest_clusters(pts, group, 0.15, 20, method)
     for g in range(n):

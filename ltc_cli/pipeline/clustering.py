@@ -5,7 +5,8 @@ and voxel components are the fast equivalents (DESIGN.md 1.1, measured in docs/d
 
 Time and memory stay linear in the number of points however many detections a frame has: the
 grid methods pack a detection's id into a cell key and take at most ``GROUPS_PER_PASS`` detections
-per pass (detections never share a cluster, so the passes give the one-pass result), and exact
+and ``POINTS_PER_PASS`` points per pass (detections never share a cluster, so the passes give the
+one-pass result), and exact
 DBSCAN runs per detection on its own points. A frame with 3,000 detections once fell back to a
 KD-tree over all its points (``query_pairs``: 18 GB, docs/reliability.md).
 """
@@ -110,6 +111,8 @@ def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, mi
 
 # Detections clustered in one pass of the grid methods: the id goes into the top bits of a key.
 GROUPS_PER_PASS = 1 << 10
+# ... and at most this many points (about 90 MB of neighbour pairs): more are split into passes.
+POINTS_PER_PASS = 1 << 17
 _AXIS_BITS = 17
 
 
@@ -132,7 +135,7 @@ def _packed_cells(points_xyz, group, cell, reach):
     """(keys (N,), strides (3,)): each point's (group, i, j, k) cell of side ``cell`` packed in an
     int64 whose fields a neighbour offset of up to ``reach`` cells never carries across; None when
     the groups or the extent do not fit (the caller splits the groups)."""
-    if int(group.max()) >= GROUPS_PER_PASS:
+    if int(group.max()) >= GROUPS_PER_PASS or (len(points_xyz) > POINTS_PER_PASS and (group != group[0]).any()):
         return None
     ijk = np.floor(points_xyz / cell).astype(np.int64)
     ijk -= ijk.min(axis=0) - reach  # >= reach, so a -reach offset never borrows from another field
@@ -146,8 +149,10 @@ def _packed_cells(points_xyz, group, cell, reach):
 
 
 def _in_parts(fn, points_xyz, group, eps, *args):
-    """Labels (N,) of ``fn(points, group, *args)`` run on parts of the groups: at most
-    GROUPS_PER_PASS groups each, halved again while a part is too wide for packed keys.
+    """Labels (N,) of ``fn(points, group, *args)`` run on parts of the groups: consecutive groups,
+    at most GROUPS_PER_PASS of them and (unless one group alone) POINTS_PER_PASS points a part, so
+    memory is bounded per part; a part within both that is still too wide for packed keys is
+    halved.
 
     Groups never share a cluster and each part's labels are offset past the previous part's, so
     the labels (and their order) are those one pass would give. A single group too wide even for
@@ -155,15 +160,24 @@ def _in_parts(fn, points_xyz, group, eps, *args):
     neighbour components on its own points.
     """
     n_groups = int(group.max()) + 1
-    if n_groups == 1:
+    sizes = np.bincount(group, minlength=n_groups)
+    if np.count_nonzero(sizes) == 1:
         return _tree_components(points_xyz, group, eps)
-    size = GROUPS_PER_PASS if n_groups > GROUPS_PER_PASS else (n_groups + 1) // 2
-    order = np.argsort(group, kind="stable")
-    bounds = np.searchsorted(group[order], np.arange(0, n_groups + size, size))
+    if n_groups <= GROUPS_PER_PASS and len(points_xyz) <= POINTS_PER_PASS:
+        cuts = [0, n_groups // 2, n_groups]
+    else:
+        cuts, total = [0], 0
+        for g, size in enumerate(sizes.tolist()):
+            if g > cuts[-1] and (g - cuts[-1] >= GROUPS_PER_PASS or total + size > POINTS_PER_PASS):
+                cuts.append(g)
+                total = 0
+            total += size
+        cuts.append(n_groups)
+    members = _members(group, n_groups)
     labels = np.full(len(points_xyz), -1, dtype=np.int64)
     offset = 0
-    for g0, lo, hi in zip(range(0, n_groups, size), bounds[:-1], bounds[1:]):
-        idx = order[lo:hi]
+    for g0, g1 in zip(cuts[:-1], cuts[1:]):
+        idx = members(g0, g1)
         if not len(idx):
             continue
         part = fn(points_xyz[idx], group[idx] - g0, *args)
@@ -174,11 +188,12 @@ def _in_parts(fn, points_xyz, group, eps, *args):
 
 
 def _members(values: np.ndarray, n: int):
-    """members(v) -> the indices i with values[i] == v, in increasing order, for v in 0..n-1,
-    from one stable sort (a scan per value is quadratic in the number of detections)."""
+    """members(v) -> the indices i with values[i] == v, in increasing order, for v in 0..n-1
+    (members(v, w): those with v <= values[i] < w, by value), from one stable sort: a scan per
+    value is quadratic in the number of detections."""
     order = np.argsort(values, kind="stable")
     bounds = np.searchsorted(values[order], np.arange(n + 1))
-    return lambda v: order[bounds[v]:bounds[v + 1]]
+    return lambda v, w=None: order[bounds[v]:bounds[v + 1 if w is None else w]]
 
 
 def _tree_components(points_xyz, group, eps):
