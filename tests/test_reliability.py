@@ -145,6 +145,17 @@ def test_leftover_temp_files_are_reported_by_info_and_removed_by_the_next_writer
         live.communicate(b"")
 
 
+def test_a_leftover_temp_file_that_fills_the_disk_no_longer_blocks_every_ingest(house, lap1_map, tmp_path):
+    with tmpfs(tmp_path / "fs", 256) as fs:
+        m = copy_map(lap1_map, fs)
+        dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+        fill_to(fs, 4096)
+        os.rename(fs / "ballast", fs / f".map.h5.tmp-{int(dead.stdout)}")  # the killed writer's file
+        r = run("ingest", house / "lap2", "--map", m)
+        assert r.exit_code == 0, r.output
+        assert temp_files(fs) == [] and len(load_map(m).sessions) == 2
+
+
 # -- 3. symlinks ----------------------------------------------------------------------------------
 
 def test_a_map_reached_by_a_symlink_is_one_map(house, lap1_map, tmp_path):
