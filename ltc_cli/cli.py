@@ -125,8 +125,13 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
 def info(map_path, fmt):
     """Summarise a map: classes, objects, sessions, frames."""
     from ltc_cli.map.model import ACTIVE, MERGED, REMOVED
-    from ltc_cli.map.store import FORMAT, VERSION, load_map
+    from ltc_cli.map.store import FORMAT, VERSION, load_map, orphan_temp_files
 
+    orphans = orphan_temp_files(map_path)
+    for tmp, size in orphans:
+        shown = f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{size} bytes"
+        click.echo(f"warning: {tmp}: a temporary file ({shown}) left by an interrupted write; "
+                   "the next ingest into this map removes it", err=True)
     smap = load_map(map_path)
     t = smap.objects
     active = np.flatnonzero(t.status == ACTIVE)
@@ -149,6 +154,7 @@ def info(map_path, fmt):
         ],
         "up_rotation": np.asarray(smap.up_rotation).round(6).tolist(),
         "created": smap.created,
+        "temp_files": [str(tmp) for tmp, _ in orphans],
     }
     if fmt == "json":
         click.echo(json.dumps(doc, indent=2))

@@ -33,6 +33,11 @@ class MapFormatError(LtcError):
     """A file that is not an ltc map, or of a newer format version."""
 
 
+class MapWriteError(LtcError):
+    """A map that cannot be committed (read-only, folder not writable, disk full); the old map is
+    unchanged."""
+
+
 class MapLockedError(LtcError):
     """Another process is writing the map."""
 

@@ -256,12 +256,31 @@ def _report_warnings(frame, warned: set, strict: bool, warn) -> None:
         warn(str(w))
 
 
+def detections_source(det, frame) -> str:
+    """The file a frame's detections came from, for warnings: a recorded detector's JSON file,
+    else the image the detector saw."""
+    folder = getattr(det, "folder", None)
+    if folder is not None:
+        return str(Path(folder) / f"{frame.key}.json")
+    return str(frame.rgb_path or frame.key)
+
+
+def most_confident(dets: list, k: int) -> list:
+    """The k detections with the highest top score, in their original order."""
+    top = np.argsort([-float(np.max(d.scores)) for d in dets], kind="stable")[:k]
+    return [dets[i] for i in sorted(top)]
+
+
 def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> IngestSummary:
+    n_sessions = len(smap.sessions)
     session, row = _session_row(smap, plan)
+    resumed = len(smap.sessions) == n_sessions
     mapper = Mapper(smap, plan.settings, plan.metric, plan.policy, session=session)
     summary = IngestSummary(session=session, visit=row["visit"])
     stage = {k: 0.0 for k in STAGES}
     since_commit = 0
+    completes = False
+    max_dets = plan.settings["modeling"]["max_detections"]
     error: BaseException | None = None
     ahead: Prefetch | None = None
     try:
@@ -295,6 +314,10 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 _report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
                 stage["detect"] += t2 - t1
+                if len(dets) > max_dets:
+                    opts.warn(f"{detections_source(det, frame)}: {len(dets)} detections in one frame, more than "
+                         f"modeling.max_detections ({max_dets}); kept the {max_dets} most confident")
+                    dets = most_confident(dets, max_dets)
                 masks, vectors = [], []
                 for d in dets:
                     v = mapper_classes(d.scores)
@@ -328,11 +351,13 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 ahead = None
             if summary.interrupted:
                 break
+        # A resumed session whose frames were all committed before the kill still ends here: it is
+        # finished (pruned, marked complete) exactly as an uninterrupted run would have finished it.
+        completes = summary.frames_done > 0 or (resumed and not summary.interrupted)
         k = plan.settings["maintenance"]["min_detections"]
         share = plan.settings["maintenance"]["min_detection_share"]
-        if not summary.interrupted and summary.frames_done > 0 and (k > 1 or share):
-            summary.removed += mapper.prune_unconfirmed(
-                k, -1, "end of session", plan.settings["maintenance"]["min_detection_share"])
+        if not summary.interrupted and completes and (k > 1 or share):
+            summary.removed += mapper.prune_unconfirmed(k, -1, "end of session", share)
     except BaseException as exc:  # commit what is done, then let the error go on
         error = exc
         if ahead is not None:  # stop the look-ahead before committing; its results are dropped
@@ -341,7 +366,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
     row["finished"] = now_iso()
     # A run that mapped no frame leaves the file as it was (and creates none): bad input never
     # changes a map.
-    if summary.frames_done > 0:
+    if summary.frames_done > 0 or (completes and error is None):
         save_map(smap, map_path)
     summary.objects = len(smap.active_rows())
     summary.stage_seconds = stage

@@ -1,14 +1,22 @@
 """The map store: the only code that touches HDF5.
 
 One ``.h5`` file holds the whole map (DESIGN.md section 4); h5dump shows all of it, nothing is
-pickled. Every save writes a complete new file beside the old one, flushes and fsyncs it and then
-``os.replace``-s it over the old one, so a reader (or a crash) only ever sees a whole map.
+pickled. Every save builds the complete new file in memory, checks and reserves its space on disk,
+writes it beside the old one, fsyncs it and ``os.replace``-s it over the old one, so a reader (or a
+crash, or a full disk) only ever sees a whole map. HDF5 itself never writes to disk: a full disk
+in the middle of an HDF5 flush crashed the process (h5py segfaults there), a plain ``os.write``
+just fails.
+
+Every path to a map (symlinks included) is one map: the lock and the commit use the resolved path,
+so two writers on ``link.h5 -> real.h5`` and ``real.h5`` exclude each other, and a symlinked map
+stays a symlink to its updated target. docs/reliability.md lists every fault tried.
 """
 
 from __future__ import annotations
 
 import errno
 import fcntl
+import itertools
 import json
 import os
 from pathlib import Path
@@ -17,16 +25,17 @@ import h5py
 import numpy as np
 
 from ltc_cli import __version__
-from ltc_cli.errors import LtcError, MapFormatError, MapLockedError
-from ltc_cli.fileio import atomic_target
+from ltc_cli.errors import MapFormatError, MapLockedError, MapWriteError
+from ltc_cli.fileio import (NoSpaceError, free_bytes, remove_temp_files, stale_temp_files, temp_path,
+                            write_bytes_atomic)
+from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT, REQUIRED, check_map_arrays
 from ltc_cli.map.model import ADDED_COLUMNS, COLUMNS, Event, ObjectTable, SemanticMap
 
 FORMAT = "ltc-map"
 VERSION = 1
 
-_STR = h5py.string_dtype(encoding="utf-8")
-_EVENT_STR = ("frame_key", "kind", "detail")
-_EVENT_INT = ("session", "frame", "object_id", "other_id")
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+_images = itertools.count()
 # Session rows: column -> kind ("s" text, "i" integer, "f" float). Dicts and lists are JSON text.
 SESSION_COLUMNS = {
     "started": "s", "finished": "s", "status": "s", "sources": "s", "recordings": "s",
@@ -36,25 +45,53 @@ SESSION_COLUMNS = {
 }
 
 
+def resolve_map_path(path) -> Path:
+    """The file a map path names, symlinks followed: what is locked and replaced."""
+    return Path(os.path.realpath(path))
+
+
+def _mb(n: int) -> str:
+    return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e6:.3g} MB"
+
+
+def _no_space(path, need: int, free: int) -> MapWriteError:
+    return MapWriteError(f"not enough free space to commit (need {_mb(need)}, {_mb(free)} free); the map is unchanged",
+                         path)
+
+
+def _folder_not_writable(folder, exc: OSError) -> MapWriteError:
+    return MapWriteError(f"the map's folder is not writable ({exc.strerror}); ltc writes each commit as a new file "
+                         "beside the map", folder)
+
+
 class MapLock:
-    """An exclusive advisory lock (flock on ``MAP.h5.lock``) held while a process writes a map.
+    """An exclusive advisory lock (flock on ``MAP.h5.lock`` beside the resolved map) held while a
+    process writes a map.
 
     The kernel drops the lock when the holder dies, even by SIGKILL, so a crash never leaves a map
-    locked for ever.
+    locked for ever. Taking the lock also checks, before any frame is mapped, that the map can be
+    written at all (file not read-only, folder writable, space for at least one commit), and removes
+    the temporary files that killed writers left beside the map (``removed``).
     """
 
     def __init__(self, path):
-        self.path = Path(str(path) + ".lock")
-        self.map_path = Path(path)
+        self.given = Path(path)
+        self.map_path = resolve_map_path(path)
+        self.path = Path(str(self.map_path) + ".lock")
         self.fd = None
+        self.removed: list[Path] = []
 
     def acquire(self) -> "MapLock":
-        if not self.map_path.parent.is_dir():
-            raise LtcError("the map's folder does not exist", self.map_path)
+        folder = self.map_path.parent
+        if not folder.is_dir():
+            raise MapWriteError("the map's folder does not exist", folder)
+        lock_existed = self.path.exists()
         try:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
         except OSError as exc:
-            raise MapLockedError(f"cannot create lock file ({exc.strerror})", self.path) from None
+            if exc.errno == errno.EROFS or (not lock_existed and exc.errno in (errno.EACCES, errno.EPERM)):
+                raise _folder_not_writable(folder, exc) from None
+            raise MapLockedError(f"cannot open the lock file ({exc.strerror})", self.path) from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
@@ -67,11 +104,19 @@ class MapLock:
             if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
                 who = f" (pid {holder})" if holder else ""
                 raise MapLockedError(f"another ltc process{who} is writing this map; try again when it ends",
-                                     self.map_path) from None
+                                     self.given) from None
             raise
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
         self.fd = fd
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, str(os.getpid()).encode(), 0)
+            # Holding the lock, no other process writes this map: every temporary file of it is
+            # the leftover of a killed writer (a reused pid included), and only takes space.
+            self.removed = remove_temp_files(self.map_path)
+            check_writable(self.map_path)
+        except BaseException:
+            self.release()
+            raise
         return self
 
     def release(self) -> None:
@@ -87,95 +132,224 @@ class MapLock:
         self.release()
 
 
+def orphan_temp_files(path) -> list[tuple[Path, int]]:
+    """Temporary files beside map ``path`` whose writer is gone: (file, size in bytes)."""
+    return stale_temp_files(resolve_map_path(path))
+
+
+def check_writable(path) -> None:
+    """Raise MapWriteError unless map ``path`` can be committed: the file (when there is one) is
+    not read-only, the folder takes a new file, and there is room for a map at least as large."""
+    path = resolve_map_path(path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        st = None
+    # os.replace would swap a read-only file out without asking (and root may write anything):
+    # the owner's write bits say what the owner wants.
+    if st is not None and (not st.st_mode & 0o222 or not os.access(path, os.W_OK)):
+        raise MapWriteError(f"the map file is read-only (mode {st.st_mode & 0o777:04o}); make it writable "
+                            "(chmod u+w) to ingest into it", path)
+    probe = temp_path(path)
+    try:
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        os.unlink(probe)
+    except OSError as exc:
+        raise _folder_not_writable(path.parent, exc) from None
+    need = st.st_size if st is not None else 0
+    free = free_bytes(path.parent)
+    if need > free:
+        raise _no_space(path, need, free)
+
+
 def check_map_file(path) -> None:
-    """Raise MapFormatError unless ``path`` is an ltc map this version can read."""
-    _open_checked(Path(path)).close()
+    """Raise MapFormatError unless ``path`` is a whole ltc map this version can read."""
+    load_map(path)
+
+
+def _damaged(what: str, path) -> MapFormatError:
+    return MapFormatError(f"damaged ltc map: {what}; ltc will not write over it", path)
+
+
+def _truncated(path) -> MapFormatError:
+    return MapFormatError("the map file is truncated or damaged (an HDF5 file that cannot be read whole); ltc will "
+                          "not write over it", path)
+
+
+def _looks_like_hdf5(path: Path) -> bool:
+    # The signature is at 0 or, after a user block, at 512, 1024, 2048, ...
+    with open(path, "rb") as fh:
+        offset = 0
+        while True:
+            fh.seek(offset)
+            head = fh.read(8)
+            if head == _HDF5_SIGNATURE:
+                return True
+            if len(head) < 8:
+                return False
+            offset = 512 if offset == 0 else offset * 2
 
 
 def _open_checked(path: Path) -> h5py.File:
-    if not path.is_file():
+    if not path.exists():
         raise MapFormatError("map file does not exist", path)
+    if not path.is_file():
+        raise MapFormatError("not an ltc map (not a file)", path)
+    try:
+        hdf5 = _looks_like_hdf5(path)
+    except OSError as exc:
+        raise MapFormatError(f"cannot read the map file ({exc.strerror})", path) from None
+    if not hdf5:
+        raise MapFormatError("not an ltc map (not an HDF5 file)", path)
     try:
         f = h5py.File(path, "r")
     except OSError:
-        raise MapFormatError("not an ltc map (not an HDF5 file)", path) from None
-    fmt = f.attrs.get("format")
-    if isinstance(fmt, bytes):
-        fmt = fmt.decode()
-    if fmt != FORMAT:
+        raise _truncated(path) from None
+    try:
+        fmt = f.attrs.get("format")
+        if isinstance(fmt, bytes):
+            fmt = fmt.decode()
+        if fmt != FORMAT:
+            raise MapFormatError("not an ltc map (an HDF5 file without the ltc-map format mark)", path)
+        version = f.attrs.get("format_version")
+        if version is None:
+            raise _damaged("it has no format_version", path)
+        if isinstance(version, (bool, np.bool_)) or not isinstance(version, (int, np.integer)):
+            raise _damaged(f"format_version is {version!r}, not an integer", path)
+        if version > VERSION:
+            raise MapFormatError(
+                f"map format version {version} is newer than this ltc reads ({VERSION}); upgrade ltc", path
+            )
+        if version < 1:
+            raise _damaged(f"format_version {version} is not a valid version", path)
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError):  # HDF5 errors in damaged metadata
         f.close()
-        raise MapFormatError("not an ltc map (an HDF5 file without the ltc-map format mark)", path)
-    version = int(f.attrs.get("format_version", -1))
-    if version > VERSION:
+        raise _truncated(path) from None
+    except BaseException:
         f.close()
-        raise MapFormatError(
-            f"map format version {version} is newer than this ltc reads ({VERSION}); upgrade ltc", path
-        )
-    if version < 1:
-        f.close()
-        raise MapFormatError(f"map format version {version} is not valid", path)
+        raise
     return f
+
+
+def _attr_text(f: h5py.File, name: str, path: Path) -> str:
+    try:
+        value = f.attrs.get(name, "")
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError):
+        raise _truncated(path) from None
+    try:
+        return value.decode() if isinstance(value, bytes) else str(value)
+    except UnicodeDecodeError:
+        raise _damaged(f"the attribute {name} is not UTF-8 text", path) from None
 
 
 def _text(arr) -> list[str]:
     return [v.decode() if isinstance(v, bytes) else str(v) for v in arr]
 
 
+def _member(f: h5py.File, name: str, kind, path: Path):
+    """The dataset or group ``name``; a missing one is named in plain words. A member that is
+    listed but cannot be opened is damage, not absence."""
+    parent, _, leaf = name.rpartition("/")
+    group = _member(f, parent, h5py.Group, path) if parent else f
+    what = "group" if kind is h5py.Group else "dataset"
+    if leaf not in group:
+        raise _damaged(f"the {what} {name} is missing", path)
+    obj = group[leaf]
+    if not isinstance(obj, kind):
+        raise _damaged(f"{name} is not a {what}", path)
+    return obj
+
+
+def _read_arrays(f: h5py.File, path: Path) -> tuple[dict, dict]:
+    """Every dataset of the map, read whole."""
+    try:
+        data = {name: np.asarray(_member(f, name, h5py.Dataset, path)[()]) for name in REQUIRED}
+        # Object columns newer than the file are absent (read as zeros); present ones are checked.
+        og = f["objects"]
+        data.update({f"objects/{name}": np.asarray(og[name][()]) for name in ADDED_COLUMNS if name in og})
+        sg = _member(f, "sessions", h5py.Group, path)
+        # A column newer than the file is absent (read as empty); the others must agree.
+        sessions = {k: np.asarray(_member(sg, k, h5py.Dataset, path)[()]) for k in SESSION_COLUMNS if k in sg}
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError):  # HDF5 errors in damaged data
+        raise _truncated(path) from None
+    _decode_text(data, "", path)
+    _decode_text(sessions, "sessions/", path)
+    return data, sessions
+
+
+def _decode_text(arrays: dict, prefix: str, path: Path) -> None:
+    """Text datasets (fixed-length or variable-length UTF-8) -> object arrays of str, in place."""
+    for name, arr in list(arrays.items()):
+        if arr.dtype.kind in "OS" and arr.ndim == 1:
+            try:
+                arrays[name] = np.array([v.decode() if isinstance(v, bytes) else v for v in arr], dtype=object)
+            except UnicodeDecodeError:
+                raise _damaged(f"{prefix}{name} holds text that is not UTF-8", path) from None
+
+
 def load_map(path) -> SemanticMap:
-    """Read a whole map. Raises MapFormatError for files that are not maps or are too new."""
+    """Read a whole map. Raises MapFormatError for files that are not maps, are too new, or are
+    damaged (docs/reliability.md)."""
     path = Path(path)
     f = _open_checked(path)
     try:
-        classes = _text(f["classes"][()])
-        og = f["objects"]
-        cols = {name: og[name][()] for name in list(COLUMNS) + ["scores"] if name in og or name not in ADDED_COLUMNS}
-        if cols["scores"].ndim != 2 or cols["scores"].shape[1] != len(classes) + 1:
-            raise MapFormatError("objects/scores does not match the class list", path)
-        table = ObjectTable.from_columns(cols)
-        eg = f["events"]
-        n_ev = len(eg["kind"])
-        ev_cols = {k: _text(eg[k][()]) for k in _EVENT_STR}
-        ev_cols.update({k: eg[k][()].tolist() for k in _EVENT_INT})
-        events = [Event(**{k: ev_cols[k][i] for k in _EVENT_STR + _EVENT_INT}) for i in range(n_ev)]
-        sg = f["sessions"]
-        sessions = []
-        n_s = len(sg["started"]) if "started" in sg else 0
-        for i in range(n_s):
-            row = {}
-            for key, kind in SESSION_COLUMNS.items():
-                if key not in sg:  # a column newer than the file: empty
-                    row[key] = "" if kind == "s" else 0
-                    continue
-                v = sg[key][i]
-                row[key] = (v.decode() if isinstance(v, bytes) else str(v)) if kind == "s" else (
-                    int(v) if kind == "i" else float(v))
-            sessions.append(row)
-        keys = set(_text(f["frames"][()]))
-        smap = SemanticMap(
-            classes=classes, objects=table, up_rotation=np.array(f["up_rotation"][()]),
-            events=events, sessions=sessions, frame_keys=keys,
-            created=str(f.attrs.get("created", "")),
-        )
-    except KeyError as exc:
-        raise MapFormatError(f"damaged ltc map (missing {exc.args[0]})", path) from None
+        data, sess = _read_arrays(f, path)
+        created = _attr_text(f, "created", path)
     finally:
         f.close()
-    return smap
+    problem = check_map_arrays(data, sess, SESSION_COLUMNS)
+    if problem:
+        raise _damaged(problem, path)
+    classes = _text(data["classes"])
+    cols = {name: data[f"objects/{name}"] for name in list(COLUMNS) + ["scores"] if f"objects/{name}" in data}
+    table = ObjectTable.from_columns(cols)
+    ev = {k: _text(data[f"events/{k}"]) for k in EVENT_TEXT}
+    ev.update({k: data[f"events/{k}"].tolist() for k in EVENT_INT})
+    n_ev = len(ev["kind"])
+    events = [Event(**{k: ev[k][i] for k in EVENT_TEXT + EVENT_INT}) for i in range(n_ev)]
+    n_s = len(next(iter(sess.values()))) if sess else 0
+    sessions = []
+    for i in range(n_s):
+        row = {}
+        for key, kind in SESSION_COLUMNS.items():
+            if key not in sess:  # a column newer than the file: empty
+                row[key] = "" if kind == "s" else 0
+                continue
+            v = sess[key][i]
+            row[key] = (v.decode() if isinstance(v, bytes) else str(v)) if kind == "s" else (
+                int(v) if kind == "i" else float(v))
+        sessions.append(row)
+    return SemanticMap(
+        classes=classes, objects=table, up_rotation=data["up_rotation"].astype(np.float64),
+        events=events, sessions=sessions, frame_keys=set(_text(data["frames"])),
+        created=created,
+    )
 
 
-def save_map(smap: SemanticMap, path) -> None:
-    """Write the whole map atomically: a temporary file beside it, fsync, then os.replace."""
-    path = Path(path)
-    with atomic_target(path) as tmp, h5py.File(tmp, "w") as f:
+def _text_dataset(group, name: str, values: list[str]) -> None:
+    """Text as fixed-length UTF-8 (NUL-padded): no global heap, whose damage made HDF5 loop for
+    ever on reading; the rest of the file's metadata is checksummed (libver v108)."""
+    raw = [v.encode("utf-8") for v in values]
+    width = max([len(b) for b in raw] + [1])
+    dtype = h5py.string_dtype("utf-8", width)
+    group.create_dataset(name, data=np.array(raw, dtype=dtype), dtype=dtype)
+
+
+def map_image(smap: SemanticMap) -> bytes:
+    """The whole map as the bytes of an HDF5 file, built in memory."""
+    name = f"ltc-map-{os.getpid()}-{next(_images)}.h5"
+    with h5py.File(name, "w", driver="core", backing_store=False, libver=("v108", "latest")) as f:
+        # Text attributes fixed-length too (np.bytes_), for the reason _text_dataset gives; the
+        # format mark stays a variable-length string, as every reader of version 1 expects it.
         f.attrs["format"] = FORMAT
         f.attrs["format_version"] = VERSION
-        f.attrs["ltc_version"] = __version__
-        f.attrs["created"] = smap.created
-        f.attrs["description"] = (
+        f.attrs["ltc_version"] = np.bytes_(__version__)
+        f.attrs["created"] = np.bytes_(smap.created.encode("utf-8"))
+        f.attrs["description"] = np.bytes_(
             "ltc object map: Z-oriented boxes (center, yaw about z, size), class vectors over "
             "classes + other, in a z-up map frame; see the ltc DESIGN, section 4"
         )
-        f.create_dataset("classes", data=np.array(smap.classes, dtype=object), dtype=_STR)
+        _text_dataset(f, "classes", smap.classes)
         f.create_dataset("up_rotation", data=np.asarray(smap.up_rotation, dtype=np.float64))
         og = f.create_group("objects")
         og.create_dataset("id", data=smap.objects.ids)
@@ -183,17 +357,39 @@ def save_map(smap: SemanticMap, path) -> None:
             og.create_dataset(name, data=arr)
         eg = f.create_group("events")
         ev = smap.events
-        for k in _EVENT_INT:
+        for k in EVENT_INT:
             eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=np.int64))
-        for k in _EVENT_STR:
-            eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=object), dtype=_STR)
+        for k in EVENT_TEXT:
+            _text_dataset(eg, k, [getattr(e, k) for e in ev])
         sg = f.create_group("sessions")
         for key, kind in SESSION_COLUMNS.items():
-            vals = [s.get(key, "" if kind == "s" else 0) for s in smap.sessions]  # rows made before a column: empty
+            # A row made before a column existed stores it empty, as load_map reads it.
+            vals = [s.get(key, "" if kind == "s" else 0) for s in smap.sessions]
             if kind == "s":
                 vals = [v if isinstance(v, str) else json.dumps(v) for v in vals]
-                sg.create_dataset(key, data=np.array(vals, dtype=object), dtype=_STR)
+                _text_dataset(sg, key, vals)
             else:
                 sg.create_dataset(key, data=np.array(vals, dtype=np.int64 if kind == "i" else np.float64))
-        f.create_dataset("frames", data=np.array(sorted(smap.frame_keys), dtype=object), dtype=_STR)
+        _text_dataset(f, "frames", sorted(smap.frame_keys))
         f.flush()
+        return f.id.get_file_image()
+
+
+def save_map(smap: SemanticMap, path) -> None:
+    """Commit the whole map atomically (module docstring). Raises MapWriteError, with the old map
+    as it was, when the new one cannot be written (a full disk: before a byte is written)."""
+    path = resolve_map_path(path)
+    image = map_image(smap)
+    try:
+        write_bytes_atomic(path, image)
+    except NoSpaceError as exc:
+        raise _no_space(path, exc.need, exc.free) from None
+    except OSError as exc:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise _no_space(path, len(image), free_bytes(path.parent)) from None
+        if exc.errno == errno.EFBIG:
+            raise MapWriteError(f"the new map ({_mb(len(image))}) is over the file-size limit; the map is unchanged",
+                                path) from None
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise _folder_not_writable(path.parent, exc) from None
+        raise MapWriteError(f"cannot commit ({exc.strerror}); the map is unchanged", path) from None

@@ -2,6 +2,13 @@
 
 Exact DBSCAN (scikit-learn's semantics, on a KD-tree) is the reference; the default grid DBSCAN
 and voxel components are the fast equivalents (DESIGN.md 1.1, measured in docs/decisions.md).
+
+Time and memory stay linear in the number of points however many detections a frame has: the
+grid methods pack a detection's id into a cell key and take at most ``GROUPS_PER_PASS`` detections
+and ``POINTS_PER_PASS`` points per pass (detections never share a cluster, so the passes give the
+one-pass result), and exact
+DBSCAN runs per detection on its own points. A frame with 3,000 detections once fell back to a
+KD-tree over all its points (``query_pairs``: 18 GB, docs/reliability.md).
 """
 
 from __future__ import annotations
@@ -34,16 +41,12 @@ def voxel_components(points_xyz: np.ndarray, group: np.ndarray, eps: float):
     n = len(points_xyz)
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    ijk = np.floor(points_xyz / eps).astype(np.int64)
-    ijk -= ijk.min(axis=0) - 1  # >= 1, so a -1 neighbour offset never borrows from another field
-    span = int(ijk.max()) + 2
-    if span >= 1 << 17 or int(group.max()) >= 1 << 10:
-        # Too wide for packed keys (kilometres of points): exact DBSCAN is still correct.
-        return _tree_components(points_xyz, group, eps)
-    bx, by = np.int64(1) << np.int64(34), np.int64(1) << np.int64(17)
-    keys = (group.astype(np.int64) << np.int64(51)) + ijk[:, 0] * bx + ijk[:, 1] * by + ijk[:, 2]
+    packed = _packed_cells(points_xyz, group, eps, 1)
+    if packed is None:
+        return _in_parts(voxel_components, points_xyz, group, eps, eps)
+    keys, strides = packed
     uniq, inverse = np.unique(keys, return_inverse=True)
-    offsets = _HALF_NEIGHBOURS @ np.array([bx, by, 1], dtype=np.int64)
+    offsets = _HALF_NEIGHBOURS @ strides
     rows, cols = [], []
     for off in offsets:
         target = uniq + off
@@ -74,18 +77,15 @@ def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, mi
     labels = np.full(n, -1, dtype=np.int64)
     if n == 0:
         return labels
-    cell = eps / 2
-    ijk = np.floor(points_xyz / cell).astype(np.int64)
-    ijk -= ijk.min(axis=0) - 2
-    if int(ijk.max()) + 3 >= 1 << 17 or int(group.max()) >= 1 << 10:
-        return _tree_components(points_xyz, group, eps)
-    bx, by = np.int64(1) << np.int64(34), np.int64(1) << np.int64(17)
-    keys = (group.astype(np.int64) << np.int64(51)) + ijk[:, 0] * bx + ijk[:, 1] * by + ijk[:, 2]
+    packed = _packed_cells(points_xyz, group, eps / 2, 2)
+    if packed is None:
+        return _in_parts(grid_dbscan_labels, points_xyz, group, eps, eps, min_samples)
+    keys, strides = packed
     uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
     m = len(uniq)
     rows, cols = [], []
-    for off in _OFFSETS_2 @ np.array([bx, by, 1], dtype=np.int64):
+    for off in _OFFSETS_2 @ strides:
         target = uniq + off
         pos = np.minimum(np.searchsorted(uniq, target), m - 1)
         hit = np.flatnonzero(uniq[pos] == target)
@@ -107,6 +107,93 @@ def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, mi
         unset = cell_label[tgt] == -1
         cell_label[tgt[unset]] = comp[a[sel][unset]]
     return cell_label[inverse]
+
+
+# Detections clustered in one pass of the grid methods: the id goes into the top bits of a key.
+GROUPS_PER_PASS = 1 << 10
+# ... and at most this many points (about 90 MB of neighbour pairs): more are split into passes.
+POINTS_PER_PASS = 1 << 17
+_AXIS_BITS = 17
+
+
+def _compact_axes(ijk: np.ndarray, reach: int) -> np.ndarray:
+    """Cell indices (N, 3) with every empty stretch along an axis shortened to reach + 1 cells.
+
+    Cells up to ``reach`` apart keep their distance and cells further apart stay further than
+    ``reach``, so every neighbour relation, and the order of cells, is unchanged: a wide but sparse
+    cloud (kilometres between points) still fits in packed keys.
+    """
+    out = np.empty_like(ijk)
+    for a in range(3):
+        uniq, inverse = np.unique(ijk[:, a], return_inverse=True)
+        steps = np.minimum(np.diff(uniq), reach + 1)
+        out[:, a] = np.concatenate([[0], np.cumsum(steps)])[inverse.ravel()]
+    return out
+
+
+def _packed_cells(points_xyz, group, cell, reach):
+    """(keys (N,), strides (3,)): each point's (group, i, j, k) cell of side ``cell`` packed in an
+    int64 whose fields a neighbour offset of up to ``reach`` cells never carries across; None when
+    the groups or the extent do not fit (the caller splits the groups)."""
+    if int(group.max()) >= GROUPS_PER_PASS or (len(points_xyz) > POINTS_PER_PASS and (group != group[0]).any()):
+        return None
+    ijk = np.floor(points_xyz / cell).astype(np.int64)
+    ijk -= ijk.min(axis=0) - reach  # >= reach, so a -reach offset never borrows from another field
+    if int(ijk.max()) + reach + 1 >= 1 << _AXIS_BITS:
+        ijk = _compact_axes(ijk, reach) + reach
+        if int(ijk.max()) + reach + 1 >= 1 << _AXIS_BITS:
+            return None
+    bx, by = np.int64(1) << np.int64(2 * _AXIS_BITS), np.int64(1) << np.int64(_AXIS_BITS)
+    keys = (group.astype(np.int64) << np.int64(3 * _AXIS_BITS)) + ijk[:, 0] * bx + ijk[:, 1] * by + ijk[:, 2]
+    return keys, np.array([bx, by, 1], dtype=np.int64)
+
+
+def _in_parts(fn, points_xyz, group, eps, *args):
+    """Labels (N,) of ``fn(points, group, *args)`` run on parts of the groups: consecutive groups,
+    at most GROUPS_PER_PASS of them and (unless one group alone) POINTS_PER_PASS points a part, so
+    memory is bounded per part; a part within both that is still too wide for packed keys is
+    halved.
+
+    Groups never share a cluster and each part's labels are offset past the previous part's, so
+    the labels (and their order) are those one pass would give. A single group too wide even for
+    compacted keys (tens of thousands of distinct cells along an axis) falls back to exact
+    neighbour components on its own points.
+    """
+    n_groups = int(group.max()) + 1
+    sizes = np.bincount(group, minlength=n_groups)
+    if np.count_nonzero(sizes) == 1:
+        return _tree_components(points_xyz, group, eps)
+    if n_groups <= GROUPS_PER_PASS and len(points_xyz) <= POINTS_PER_PASS:
+        cuts = [0, n_groups // 2, n_groups]
+    else:
+        cuts, total = [0], 0
+        for g, size in enumerate(sizes.tolist()):
+            if g > cuts[-1] and (g - cuts[-1] >= GROUPS_PER_PASS or total + size > POINTS_PER_PASS):
+                cuts.append(g)
+                total = 0
+            total += size
+        cuts.append(n_groups)
+    members = _members(group, n_groups)
+    labels = np.full(len(points_xyz), -1, dtype=np.int64)
+    offset = 0
+    for g0, g1 in zip(cuts[:-1], cuts[1:]):
+        idx = members(g0, g1)
+        if not len(idx):
+            continue
+        part = fn(points_xyz[idx], group[idx] - g0, *args)
+        found = part >= 0
+        labels[idx[found]] = part[found] + offset
+        offset += int(part.max()) + 1 if found.any() else 0
+    return labels
+
+
+def _members(values: np.ndarray, n: int):
+    """members(v) -> the indices i with values[i] == v, in increasing order, for v in 0..n-1
+    (members(v, w): those with v <= values[i] < w, by value), from one stable sort: a scan per
+    value is quadratic in the number of detections."""
+    order = np.argsort(values, kind="stable")
+    bounds = np.searchsorted(values[order], np.arange(n + 1))
+    return lambda v, w=None: order[bounds[v]:bounds[v + 1 if w is None else w]]
 
 
 def _tree_components(points_xyz, group, eps):
@@ -162,8 +249,9 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
     n_groups = int(group.max()) + 1 if len(group) else 0
     out: list = [None] * n_groups
     if method == "dbscan":
+        members = _members(group, n_groups)
         for g in range(n_groups):
-            idx = np.flatnonzero(group == g)
+            idx = members(g)
             labels = dbscan_labels(points_xyz[idx], eps, min_samples)
             if (labels >= 0).any():
                 best = np.bincount(labels[labels >= 0]).argmax()
@@ -185,9 +273,10 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
     comp_group[labels] = group
     order = np.lexsort((-counts, comp_group))
     first = order[np.r_[True, comp_group[order][1:] != comp_group[order][:-1]]]
+    members = _members(labels, len(counts))
     for comp in first:
         if counts[comp] >= min_samples:
-            out[int(comp_group[comp])] = points_idx[labels == comp]
+            out[int(comp_group[comp])] = points_idx[members(comp)]
     return out
 
 

@@ -1,0 +1,81 @@
+"""A test plugin (loaded with LTC_PLUGINS) that numbers the points of an ingest where a kill can
+fall, and SIGKILLs its own process at one of them: deterministic, reproducible kill points, with no
+timing involved.
+
+Points: each frame's detection (between frames), and inside every commit: the temporary file
+created, its space reserved, half of it written (a torn file), fsync-ed, just before and just
+after ``os.replace``. ``LTC_TEST_EVENTS=FILE`` appends each point's name to FILE as it is reached;
+``LTC_TEST_KILL_AT=N`` kills the process at the N-th point (1-based).
+"""
+
+import os
+import signal
+
+import ltc_cli.fileio as fileio
+from ltc_plugins.recorded import RecordedDetector
+
+_count = 0
+_kill_at = int(os.environ.get("LTC_TEST_KILL_AT", "0"))
+_log = os.environ.get("LTC_TEST_EVENTS")
+
+
+def _point(name: str) -> bool:
+    """Record a point; True when the process must die here."""
+    global _count
+    _count += 1
+    if _log:
+        with open(_log, "a") as fh:
+            fh.write(name + "\n")
+    return _count == _kill_at
+
+
+def _die():
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+class _OsAtPoints:
+    """``os`` as the fileio module sees it, with kill points in the calls a commit makes."""
+
+    def __getattr__(self, name):
+        return getattr(os, name)
+
+    def open(self, path, flags, *args):
+        if flags & os.O_CREAT and _point("temp file created"):
+            _die()
+        return os.open(path, flags, *args)
+
+    def posix_fallocate(self, fd, offset, size):
+        if _point("space reserved"):
+            _die()
+        return os.posix_fallocate(fd, offset, size)
+
+    def write(self, fd, data):
+        if _point("half written"):
+            os.write(fd, bytes(data[: len(data) // 2]))
+            _die()
+        return os.write(fd, data)
+
+    def fsync(self, fd):
+        if _point("fsync"):
+            _die()
+        return os.fsync(fd)
+
+    def replace(self, src, dst):
+        if _point("before replace"):
+            _die()
+        os.replace(src, dst)
+        if _point("after replace"):
+            _die()
+
+
+fileio.os = _OsAtPoints()
+_detect = RecordedDetector.detect
+
+
+def _detect_at_point(self, frame):
+    if _point("detect"):
+        _die()
+    return _detect(self, frame)
+
+
+RecordedDetector.detect = _detect_at_point
