@@ -297,7 +297,10 @@ def test_higher_v_other_removes_gone_objects_after_fewer_non_detections(house, t
     for name, cal in (("high", high), ("low", low)):
         m = tmp_path / f"{name}.h5"
         shutil.copyfile(base, m)
-        r = run("ingest", out / "lap2", "--map", m, "--calibration", cal)
+        # The detector's calibration alone: misses are the detector's word (not the depth's), each
+        # one counting, as when v_Other was the only knob.
+        r = run("ingest", out / "lap2", "--map", m, "--calibration", cal, "--set", "maintenance.seen_empty_share=null",
+                "--set", "maintenance.nondet_min_move=null", "--set", "maintenance.nondet_min_turn=null")
         assert r.exit_code == 0, r.output
         assert load_map(m).sessions[1]["v_other"] == pytest.approx(v_high if name == "high" else 0.3)
         records[name] = removal_record(m, {g: lap1_gt[g] for g in gone})

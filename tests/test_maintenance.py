@@ -13,6 +13,13 @@ from tests.scene import INTR, T_world_camera, render
 CLASSES = ["chair", "table"]
 
 
+def every_miss_counts(cfg):
+    """The paper's stage 4, which the hand values below follow: each miss counts, with v_Other."""
+    m = cfg["maintenance"]
+    m["nondet_min_move"] = m["nondet_min_turn"] = m["seen_empty_share"] = m["v_other_seen_empty"] = None
+    return cfg
+
+
 def make_mapper(cfg=None, policy="non-detection"):
     cfg = cfg or defaults()
     smap = SemanticMap.new(CLASSES)
@@ -47,7 +54,7 @@ def test_visible_pixels_counts_the_projected_face():
 
 
 def test_object_removed_after_the_expected_number_of_non_detections():
-    cfg = defaults()
+    cfg = every_miss_counts(defaults())
     cfg["integration"]["max_weight"] = None  # the paper's running mean
     mapper = make_mapper(cfg)
     row = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
@@ -70,7 +77,7 @@ def test_capped_weight_removes_a_long_seen_object_sooner():
     the way to eq. 4's [0.25, 0.25, 0.5]. By hand: chair 0.8 -> 0.6625 -> 0.559 -> 0.482 -> 0.424
     and other 0.1 -> 0.2 -> 0.275 -> 0.331 -> 0.373 -> 0.405; other leads at the 5th
     (0.405 > 0.380)."""
-    cfg = defaults()
+    cfg = every_miss_counts(defaults())
     cfg["integration"]["max_weight"] = 3
     mapper = make_mapper(cfg)
     row = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=40)
@@ -148,7 +155,7 @@ def test_per_class_v_other():
     [0.8, 0.1, 0.1] -> [0.567, 0.1, 0.333] -> [0.45, 0.1, 0.45] (a tie keeps the class) ->
     [0.38, 0.1, 0.52]: removed at the 3rd non-detection. v_Other 0.2 for tables: eq. 4 gives
     [0.4, 0.4, 0.2], whose `other` never leads, so a table is never removed however often missed."""
-    cfg = defaults()
+    cfg = every_miss_counts(defaults())
     cfg["maintenance"]["v_other_per_class"] = {"chair": 0.8, "table": 0.2}
     mapper = make_mapper(cfg)
     chair = add_object(mapper, [2.2, 0, 0.6], [0.4, 0.6, 0.8], [0.8, 0.1, 0.1], n_det=2)
