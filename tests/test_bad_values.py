@@ -122,3 +122,13 @@ def test_class_not_in_the_class_list_is_an_error_with_strict(lap1, tmp_path):
     culprit = bad / "detections" / "000000.json"
     assert len(lines) == 1 and str(culprit) in lines[0] and "'lamp'" in lines[0], lines
     assert sha256(m) == before
+
+
+def test_a_newer_recording_format_says_which_version_ltc_reads(tmp_path):
+    rec = write_recording(tmp_path / "rec", cam_ys=(0.0,))
+    meta = rec / "recording.yaml"
+    meta.write_text(meta.read_text().replace("ltc-recording/1", "ltc-recording/2"))
+    r, lines = ingest(rec, "--map", tmp_path / "m.h5")
+    assert r.exit_code == 1 and len(lines) == 1
+    assert "ltc-recording/2" in lines[0] and "reads ltc-recording/1" in lines[0] and str(meta) in lines[0]
+    assert not (tmp_path / "m.h5").exists()

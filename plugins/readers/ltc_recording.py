@@ -43,6 +43,10 @@ def _read_meta(meta_path: Path) -> tuple[bytes, dict]:
         raise RecordingError(f"not valid YAML{where}", meta_path) from None
     if not isinstance(meta, dict):
         raise RecordingError("must be a YAML mapping", meta_path)
+    fmt = meta.get("format")
+    if isinstance(fmt, str) and fmt.startswith("ltc-recording/") and fmt != "ltc-recording/1":
+        raise RecordingError(f"format {fmt!r}: this version of ltc reads ltc-recording/1 (a newer ltc may read it)",
+                             meta_path)
     validate(meta, "recording", meta_path)
     return meta_bytes, meta
 
