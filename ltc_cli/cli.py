@@ -61,6 +61,26 @@ def _progress(label: str, count: Callable[[], int]):
         yield bar.update
 
 
+_READER_OPTION_HELP = ("A reader option, value read as YAML (repeat for several), e.g. -r intrinsics=518,519,325.5,253.5 "
+                       "for a plain folder, or -r color_topic=/camera/color/image_raw for a bag.")
+
+
+def _reader_options(items) -> dict:
+    """-r KEY=VALUE items -> the reader's options mapping (dotted keys nest, values are YAML)."""
+    from ltc_cli.config import parse_set
+
+    out: dict = {}
+    for item in items:
+        if "=" not in item.strip("="):
+            raise click.BadParameter(f"expected KEY=VALUE, not {item!r}", param_hint="--reader-option")
+        key, value = next(iter(parse_set(item).items()))
+        if isinstance(value, dict) and isinstance(out.get(key), dict):  # -r a.b=1 -r a.c=2: both
+            out[key] = {**out[key], **value}
+        else:
+            out[key] = value
+    return out
+
+
 @cli.command()
 @click.argument("recordings", nargs=-1, required=True, type=click.Path())
 @click.option("--map", "map_path", required=True, type=click.Path(dir_okay=False), help="The map file (.h5); created if absent.")
@@ -73,13 +93,14 @@ def _progress(label: str, count: Callable[[], int]):
 @click.option("--checkpoint-every", default=50, show_default=True, type=click.IntRange(min=0), help="Commit the map every N frames (0: only at the end).")
 @click.option("--strict", is_flag=True, help="Stop at the first bad frame instead of skipping it.")
 @click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
+@click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=_READER_OPTION_HELP)
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Threads that load and detect the next frames while the current one is mapped (the map is the same as with 1).")
 @click.option("--revisit", is_flag=True,
               help="Map recordings already in the map again, as a new session (the same route driven again); "
                    "an interrupted revisit resumes with the same command.")
 def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict,
-           reader, jobs, revisit):
+           reader, reader_opts, jobs, revisit):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     # The handlers go in before anything slow (imports, reading settings, opening recordings), so
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
@@ -96,9 +117,10 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         if policy:
             cfg["maintenance"]["policy"] = policy
         calib = load_calibration(calibration) if calibration else None
-        with _progress("ingest", lambda: count_frames(recordings, reader)) as progress:
+        r_opts = _reader_options(reader_opts)
+        with _progress("ingest", lambda: count_frames(recordings, reader, r_opts)) as progress:
             summary = run_ingest(
-                list(recordings), map_path, cfg, reader=reader, calibration=calib,
+                list(recordings), map_path, cfg, reader=reader, reader_options=r_opts, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=_warn,
                 should_stop=lambda: stop["signal"] is not None, jobs=jobs, revisit=revisit,
             )
@@ -353,8 +375,9 @@ def evaluate(map_path, gt_path, prev_paths, max_distance, fmt):
 @click.option("--min-pixels", type=click.IntRange(min=1), help="Fewest visible pixels of an instance that counts (default: maintenance.min_visible_pixels scaled to the image area).")
 @click.option("--iou", "iou_threshold", default=0.5, show_default=True, type=click.FloatRange(0, 1, min_open=True), help="Mask IoU for a detection to match an instance.")
 @click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
+@click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=_READER_OPTION_HELP)
 @click.option("--table", is_flag=True, help="Print the per-class figures before the summary.")
-def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, table):
+def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, reader_opts, table):
     """Measure a detector on RECORDING's ground-truth instance masks; write v_Other and the figures."""
     from ltc_cli.recordings.open import count_frames
     from ltc_cli.tools.calibrate import calibrate
@@ -363,9 +386,10 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
     cfg = load_config(config_file, sets)
     if detector:
         cfg["detector"]["name"] = detector
-    with _progress("calibrate", lambda: count_frames([recording], reader)) as progress:
+    r_opts = _reader_options(reader_opts)
+    with _progress("calibrate", lambda: count_frames([recording], reader, r_opts)) as progress:
         cal = calibrate(
-            recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader,
+            recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader, reader_options=r_opts,
             min_visible_pixels=cfg["maintenance"]["min_visible_pixels"], min_pixels=min_pixels,
             iou_threshold=iou_threshold, progress=progress, warn=_warn,
         )

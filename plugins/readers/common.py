@@ -38,7 +38,7 @@ _POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 COMMON_OPTIONS = {
     "depth_scale": {**_POSITIVE, "description": "metres = stored depth value / depth_scale"},
     "intrinsics": {
-        "description": "{fx, fy, cx, cy} or [fx, fy, cx, cy] with positive fx, fy (overrides the layout's camera)",
+        "description": "{fx, fy, cx, cy}, [fx, fy, cx, cy] or \"fx,fy,cx,cy\" in pixels, with positive fx, fy (overrides the layout's camera)",
         "oneOf": [
             {
                 "type": "object",
@@ -49,6 +49,8 @@ COMMON_OPTIONS = {
             },
             {"type": "array", "prefixItems": [_POSITIVE, _POSITIVE, {"type": "number"}, {"type": "number"}],
              "minItems": 4, "maxItems": 4},
+            # "FX,FY,CX,CY" as typed on a command line (-r intrinsics=518,519,325.5,253.5).
+            {"type": "string", "pattern": r"^\s*\+?[0-9.eE+-]+(\s*,\s*[+-]?[0-9.eE+-]+){3}\s*$"},
         ],
     },
     "up": {
@@ -120,7 +122,15 @@ def intrinsics_option(opts: dict) -> tuple[float, float, float, float] | None:
         return None
     if isinstance(value, dict):
         value = [value[k] for k in ("fx", "fy", "cx", "cy")]
-    return tuple(float(v) for v in value)
+    elif isinstance(value, str):
+        try:
+            value = [float(v) for v in value.split(",")]
+        except ValueError:
+            raise ConfigError(f"option 'intrinsics' must be FX,FY,CX,CY numbers, got {value!r}") from None
+    vals = tuple(float(v) for v in value)
+    if not (all(np.isfinite(vals)) and vals[0] > 0 and vals[1] > 0):
+        raise ConfigError(f"option 'intrinsics' needs finite numbers and positive FX, FY, got {value!r}")
+    return vals
 
 
 def make_intrinsics(width, height, fx_fy_cx_cy, override) -> Intrinsics:
