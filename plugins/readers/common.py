@@ -244,6 +244,39 @@ def read_matrix_file(path: Path, what: str) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------------------
+# Associating stamps
+
+
+def nearest_index(sorted_stamps: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Index of the nearest of ``sorted_stamps`` (M,) for each of ``t`` (N,)."""
+    i = np.clip(np.searchsorted(sorted_stamps, t), 1, len(sorted_stamps) - 1)
+    left, right = sorted_stamps[i - 1], sorted_stamps[i]
+    return np.where(np.abs(t - left) <= np.abs(right - t), i - 1, i)
+
+
+def associate_nearest(rgb_t: np.ndarray, depth_t: np.ndarray, max_dt: float) -> tuple[list[int], np.ndarray]:
+    """(rgb indices with a depth image within ``max_dt``, sorted; depth index (N,) of every rgb).
+
+    Nearest depth stamp per rgb stamp; each depth image is used once, by the closest rgb stamp
+    (TUM's associate.py rule; the bag reader pairs colour and depth messages the same way).
+    """
+    d_order = np.argsort(depth_t, kind="stable")
+    depth_sorted = depth_t[d_order]
+    if len(depth_sorted) == 1:
+        nearest_d = np.zeros(len(rgb_t), dtype=int)
+    else:
+        nearest_d = nearest_index(depth_sorted, rgb_t)
+    d_idx = d_order[nearest_d]
+    d_diff = np.abs(depth_t[d_idx] - rgb_t)
+    best_for_depth: dict[int, int] = {}
+    for i in np.flatnonzero(d_diff <= max_dt):
+        j = int(d_idx[i])
+        if j not in best_for_depth or d_diff[i] < d_diff[best_for_depth[j]]:
+            best_for_depth[j] = int(i)
+    return sorted(best_for_depth.values()), d_idx
+
+
+# --------------------------------------------------------------------------------------------------
 # The frame loader
 
 
