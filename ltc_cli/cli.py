@@ -298,19 +298,30 @@ def export_cmd(map_path, fmt, output, origin):
 @click.option("--width", default=1200, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
 @click.option("--height", default=900, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
 @click.option("--labels/--no-labels", default=None, help="Label objects 'class #id' (default: when at most 300).")
-def render_cmd(map_path, output, ground_truth, width, height, labels):
-    """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a PNG."""
+@click.option("--changes", "show_changes", is_flag=True,
+              help="Mark what the latest visit changed (as `ltc changes`): added green, removed red, moved orange.")
+@click.option("--since", type=click.IntRange(min=-1), metavar="SESSION", help="With --changes: changes after this session.")
+def render_cmd(map_path, output, ground_truth, width, height, labels, show_changes, since):
+    """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a picture (PNG, or
+    JPEG, WebP, TIFF, BMP by the output's suffix)."""
     from pathlib import Path
 
+    from ltc_cli.map.changes import map_changes
     from ltc_cli.map.render import load_ground_truth, render_map
     from ltc_cli.map.store import load_map
 
+    if since is not None and not show_changes:
+        raise click.UsageError("--since goes with --changes")
     smap = load_map(map_path)
     gt = load_ground_truth(ground_truth) if ground_truth else None
+    changes = map_changes(smap, since, map_path=map_path).changes if show_changes else None
     res = render_map(smap, output, ground_truth=gt, width=width, height=height, labels=labels,
-                     map_name=Path(map_path).name)
+                     map_name=Path(map_path).name, changes=changes)
     extra = f", {res.ground_truth} ground-truth boxes" if gt is not None else ""
-    click.echo(f"{output}: {res.width}x{res.height} px, {_plural(res.objects, 'object')}{extra}")
+    if res.changes is not None:
+        extra += ", changes: " + ", ".join(f"{n} {k}" for k, n in res.changes.items())
+    fmt = "" if res.format == "PNG" else f" {res.format}"
+    click.echo(f"{output}: {res.width}x{res.height} px{fmt}, {_plural(res.objects, 'object')}{extra}")
 
 
 @cli.command()
@@ -406,6 +417,10 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
         f"recall {_fmt(doc['recall'], '.2f')} (any class {_fmt(doc['detection_rate'], '.2f')}), "
         f"precision {_fmt(doc['precision'], '.2f')}, v_other {doc['v_other']:.2f}"
     )
+
+
+# The commands that look at a map's history and at it in 3D join the group from their own module.
+from ltc_cli import cli_views  # noqa: E402,F401
 
 
 def main():
