@@ -65,7 +65,7 @@ _READER_OPTION_HELP = ("A reader option, value read as YAML (repeat for several)
                        "for a plain folder, or -r color_topic=/camera/color/image_raw for a bag.")
 
 
-def _reader_options(items) -> dict:
+def reader_options(items) -> dict:
     """-r KEY=VALUE items -> the reader's options mapping (dotted keys nest, values are YAML)."""
     from ltc_cli.config import parse_set
 
@@ -117,7 +117,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         if policy:
             cfg["maintenance"]["policy"] = policy
         calib = load_calibration(calibration) if calibration else None
-        r_opts = _reader_options(reader_opts)
+        r_opts = reader_options(reader_opts)
         with _progress("ingest", lambda: count_frames(recordings, reader, r_opts)) as progress:
             summary = run_ingest(
                 list(recordings), map_path, cfg, reader=reader, reader_options=r_opts, calibration=calib,
@@ -260,15 +260,28 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
 
 @cli.command("export")
 @click.argument("map_path", type=click.Path())
-@click.option("--format", "fmt", type=click.Choice(["json", "geojson"]), required=True)
+@click.option("--format", "fmt", type=click.Choice(["json", "geojson", "rrd"]), required=True,
+              help="json: everything about every object; geojson: footprints (local metres unless --origin); "
+                   "rrd: a Rerun recording of the boxes in 3D (needs ltc[viz]; -o required).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here (atomically) instead of stdout.")
 @click.option("--origin", metavar="LAT,LON[,HEADING_DEG]",
               help="GeoJSON in WGS84 longitude/latitude: the map origin's latitude and longitude (degrees) and the "
                    "bearing of the map's +y axis (degrees clockwise from true north; default 0).")
 def export_cmd(map_path, fmt, output, origin):
-    """Export the active objects of MAP.h5 as JSON or GeoJSON (RFC 7946)."""
+    """Export the active objects of MAP.h5 as JSON, GeoJSON (RFC 7946) or a Rerun .rrd file."""
     from ltc_cli.map import export as ex
     from ltc_cli.map.store import load_map
+
+    if fmt == "rrd":
+        from ltc_cli.map.rrd import require_rerun, write_rrd
+
+        if not output or origin is not None:
+            raise click.UsageError("--format rrd writes a file: give -o FILE.rrd (and no --origin)")
+        require_rerun()  # before reading the map: the missing extra is the first thing to hear
+        done = write_rrd(output, load_map(map_path))
+        click.echo(f"{map_path}: {_plural(done['objects'], 'object')} exported as rrd to {output} "
+                   f"(open it with: rerun {output})", err=True)
+        return
 
     geo_origin = None
     if origin is not None:
@@ -397,7 +410,7 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
     cfg = load_config(config_file, sets)
     if detector:
         cfg["detector"]["name"] = detector
-    r_opts = _reader_options(reader_opts)
+    r_opts = reader_options(reader_opts)
     with _progress("calibrate", lambda: count_frames([recording], reader, r_opts)) as progress:
         cal = calibrate(
             recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader, reader_options=r_opts,
