@@ -20,6 +20,7 @@ from ltc_cli import __version__, plugins
 from ltc_cli.config import load_config
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.signals import stop_on_signals
+from ltc_cli.text import plural
 
 
 class LtcGroup(click.Group):
@@ -42,8 +43,7 @@ def cli(debug):
     """ltc: object-oriented semantic maps that stay true over months (LTC-Mapping)."""
 
 
-def _plural(n: int, word: str) -> str:
-    return f"{n} {word}{'' if n == 1 else 's'}"
+_plural = plural
 
 
 def _warn(message: str) -> None:
@@ -181,13 +181,14 @@ def info(map_path, fmt):
     click.echo(f"objects      {o['active']} active, {o['removed']} removed, {o['merged']} merged")
     for name, n in doc["per_class"].items():
         click.echo(f"  {name:<18} {n}")
-    click.echo(f"frames       {doc['frames']} ingested; {doc['events']} events logged")
+    click.echo(f"frames       {doc['frames']} ingested; {_plural(doc['events'], 'event')} logged")
     click.echo(f"sessions     {len(smap.sessions)}")
     for i, s in enumerate(doc["sessions"]):
         visit = f"  visit {s['visit']}" if s["visit"] > 1 else ""
         click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped){visit}  "
                    f"{s['detector']}/{s['metric']}/{s['policy']} v_other={s['v_other']:.3g}  {', '.join(s['sources'])}")
-    click.echo(f"{map_path}: {o['active']} objects of {len(per_class)} classes from {len(smap.frame_keys)} frames in {len(smap.sessions)} sessions")
+    click.echo(f"{map_path}: {_plural(o['active'], 'object')} of {_plural(len(per_class), 'class')} from "
+               f"{_plural(len(smap.frame_keys), 'frame')} in {_plural(len(smap.sessions), 'session')}")
 
 
 @cli.command("plugins")
@@ -258,106 +259,55 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
     click.echo(f"{map_path}: {len(recs)} of {result.total} {kind}", err=True)
 
 
-@cli.command("export")
-@click.argument("map_path", type=click.Path())
-@click.option("--format", "fmt", type=click.Choice(["json", "geojson", "rrd"]), required=True,
-              help="json: everything about every object; geojson: footprints (local metres unless --origin); "
-                   "rrd: a Rerun recording of the boxes in 3D (needs ltc[viz]; -o required).")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here (atomically) instead of stdout.")
-@click.option("--origin", metavar="LAT,LON[,HEADING_DEG]",
-              help="GeoJSON in WGS84 longitude/latitude: the map origin's latitude and longitude (degrees) and the "
-                   "bearing of the map's +y axis (degrees clockwise from true north; default 0).")
-def export_cmd(map_path, fmt, output, origin):
-    """Export the active objects of MAP.h5 as JSON, GeoJSON (RFC 7946) or a Rerun .rrd file."""
-    from ltc_cli.map import export as ex
-    from ltc_cli.map.store import load_map
-
-    if fmt == "rrd":
-        from ltc_cli.map.rrd import require_rerun, write_rrd
-
-        if not output or origin is not None:
-            raise click.UsageError("--format rrd writes a file: give -o FILE.rrd (and no --origin)")
-        require_rerun()  # before reading the map: the missing extra is the first thing to hear
-        done = write_rrd(output, load_map(map_path))
-        click.echo(f"{map_path}: {_plural(done['objects'], 'object')} exported as rrd to {output} "
-                   f"(open it with: rerun {output})", err=True)
-        return
-
-    geo_origin = None
-    if origin is not None:
-        if fmt != "geojson":
-            raise click.UsageError("--origin applies to --format geojson only")
-        try:
-            geo_origin = ex.parse_origin(origin)
-        except ex.ExportError as exc:
-            raise click.BadParameter(exc.message, param_hint="--origin") from None
-    smap = load_map(map_path)
-    doc = ex.export_json(smap, map_path) if fmt == "json" else ex.export_geojson(smap, geo_origin, map_path)
-    text = ex.dumps(doc)
-    if output:
-        ex.write_atomic(output, text)
-    else:
-        click.echo(text, nl=False)
-    n = len(doc["objects"] if fmt == "json" else doc["features"])
-    crs = "" if fmt == "json" else (" (WGS84 lon/lat)" if geo_origin else " (local metres)")
-    click.echo(f"{map_path}: {n} objects exported as {fmt}{crs} to {output or 'stdout'}", err=True)
-
-
-@cli.command("render")
-@click.argument("map_path", type=click.Path())
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The PNG to write.")
-@click.option("--ground-truth", "ground_truth", type=click.Path(), metavar="FILE|RECORDING",
-              help="ground_truth.json, or a recording folder holding one: drawn beneath as dashed outlines.")
-@click.option("--width", default=1200, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
-@click.option("--height", default=900, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
-@click.option("--labels/--no-labels", default=None, help="Label objects 'class #id' (default: when at most 300).")
-@click.option("--changes", "show_changes", is_flag=True,
-              help="Mark what the latest visit changed (as `ltc changes`): added green, removed red, moved orange.")
-@click.option("--since", type=click.IntRange(min=-1), metavar="SESSION", help="With --changes: changes after this session.")
-def render_cmd(map_path, output, ground_truth, width, height, labels, show_changes, since):
-    """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a picture (PNG, or
-    JPEG, WebP, TIFF, BMP by the output's suffix)."""
-    from pathlib import Path
-
-    from ltc_cli.map.changes import map_changes
-    from ltc_cli.map.render import load_ground_truth, render_map
-    from ltc_cli.map.store import load_map
-
-    if since is not None and not show_changes:
-        raise click.UsageError("--since goes with --changes")
-    smap = load_map(map_path)
-    gt = load_ground_truth(ground_truth) if ground_truth else None
-    changes = map_changes(smap, since, map_path=map_path).changes if show_changes else None
-    res = render_map(smap, output, ground_truth=gt, width=width, height=height, labels=labels,
-                     map_name=Path(map_path).name, changes=changes)
-    extra = f", {res.ground_truth} ground-truth boxes" if gt is not None else ""
-    if res.changes is not None:
-        extra += ", changes: " + ", ".join(f"{n} {k}" for k, n in res.changes.items())
-    fmt = "" if res.format == "PNG" else f" {res.format}"
-    click.echo(f"{output}: {res.width}x{res.height} px{fmt}, {_plural(res.objects, 'object')}{extra}")
+# Static (importing the simulator to read its DEFAULTS would slow every ltc command by half a
+# second); tests/test_cli_help.py checks it against DEFAULTS.
+SIMULATE_OPTIONS_HELP = (
+    "A simulator option, repeat for several, e.g. --set miss_rate=0.3. Detector: miss_rate (0.15), "
+    "confusion_rate (0.05), false_positive_rate (0.05, per frame), split_rate (0.03), bleed_px (3), "
+    "min_pixels (auto: 5e-4 of the image); depth sensor: depth_noise (0.005 m at 1 m), depth_resolution "
+    "(0.003), noise_block (8), min_range (0.3), max_range (8.0), rgb_noise (2.0); between laps: "
+    "moved_fraction (0.15), removed_fraction (0.1), added_fraction (0.1); robot: frames_per_room (auto), "
+    "transit_step (0.8 m), camera_height (1.0 m), camera_pitch_deg (12.0).")
 
 
 @cli.command()
 @click.argument("outdir", type=click.Path(file_okay=False))
-@click.option("--scene", type=click.Choice(["tiny", "small", "medium", "large"]), default="small", show_default=True)
-@click.option("--laps", type=click.IntRange(1, 100), default=2, show_default=True)
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
-@click.option("--width", type=click.IntRange(min=16), default=640, show_default=True)
-@click.option("--height", type=click.IntRange(min=16), default=480, show_default=True)
-@click.option("--set", "sets", multiple=True, metavar="OPTION=VALUE",
-              help="A simulator option, e.g. --set miss_rate=0.3 (see ltc_cli.simulate.DEFAULTS).")
+@click.option("--scene", type=click.Choice(["tiny", "small", "medium", "large"]), default="small", show_default=True,
+              help="House size: tiny (1 room, 12 frames a lap, for tests), small (2 rooms), medium (4), large (6).")
+@click.option("--laps", type=click.IntRange(1, 100), default=2, show_default=True,
+              help="Laps of the same path; between laps objects are moved, removed and added.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Random seed: the same arguments give byte-identical files.")
+@click.option("--width", type=click.IntRange(min=16), default=640, show_default=True, help="Image width, pixels.")
+@click.option("--height", type=click.IntRange(min=16), default=480, show_default=True, help="Image height, pixels.")
+@click.option("--set", "sets", multiple=True, metavar="OPTION=VALUE", help=SIMULATE_OPTIONS_HELP)
 def simulate(outdir, scene, laps, seed, width, height, sets):
-    """Write a synthetic house as ltc-recording/1 folders OUTDIR/lap1, lap2, ..."""
+    """Write a synthetic house as ltc-recording/1 folders OUTDIR/lap1, lap2, ... (with ground truth,
+    annotations and a noisy recorded detector)."""
     from ltc_cli.config import parse_set
     from ltc_cli.tools.simulate import simulate as run_simulate
 
     options = {}
     for item in sets:
         options.update(parse_set(item))
-    summary = run_simulate(outdir, scene=scene, laps=laps, seed=seed, width=width, height=height, **options)
+    bar = None
+
+    def progress(done, total):
+        nonlocal bar
+        if bar is None:
+            bar = click.progressbar(length=total, label="simulate", file=sys.stderr)
+            bar.__enter__()
+        bar.update(1)
+
+    try:
+        summary = run_simulate(outdir, scene=scene, laps=laps, seed=seed, width=width, height=height,
+                               progress=progress if sys.stderr.isatty() else None, **options)
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
     frames = sum(lap["frames"] for lap in summary["laps"])
     click.echo(f"{outdir}: {_plural(len(summary['laps']), 'lap')} of the {scene} house (seed {seed}), "
-               f"{frames} frames, {summary['bytes'] / 1e6:.1f} MB")
+               f"{_plural(frames, 'frame')}, {summary['bytes'] / 1e6:.1f} MB")
 
 
 def _fmt(v, spec=".3f"):

@@ -25,7 +25,7 @@ class OutputExistsError(LtcError):
 
 
 def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: int = 640,
-             height: int = 480, **options) -> dict:
+             height: int = 480, progress=None, **options) -> dict:
     """Write a synthetic house recording, one ``ltc-recording/1`` folder per lap.
 
     outdir: the folder to write ``lap1``, ``lap2``, ... into (created as needed); a lap folder that
@@ -37,6 +37,7 @@ def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: 
     width, height: image size; the intrinsics are those of a Kinect-like camera (fx = fy = 525 at
         640 px wide, scaled with the width; principal point in the middle).
     options: see ``DEFAULTS`` (detector noise rates, depth noise, lap changes, path density).
+    progress: called as ``progress(done, total)`` after each frame written (frames of all laps).
 
     Returns a summary: {"outdir", "scene", "seed", "width", "height", "classes", "frames_per_lap",
     "objects_per_lap", "changes" (per lap), "laps": [{"lap", "path", "frames", "objects",
@@ -91,9 +92,15 @@ def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: 
             "classes": list(classes),
             "simulator": {"scene": scene, "seed": seed, "lap": lap, "laps": laps, "options": sim_options},
         }
+        done = (lap - 1) * len(poses)
+
+        def frame_written(i, done=done):
+            if progress is not None:
+                progress(done + i + 1, laps * len(poses))
+
         try:
             nbytes = write_lap(RecordingWriter(lap_dir, meta), house, poses, renderer, opts, min_pixels,
-                               classes, seed, lap, changes)
+                               classes, seed, lap, changes, frame_written)
         except OSError as exc:
             raise LtcError(f"cannot write: {exc.strerror or exc}", path=exc.filename or lap_dir) from exc
         summary["objects_per_lap"].append(len(house.objects))
@@ -105,7 +112,7 @@ def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: 
 
 
 def write_lap(writer: RecordingWriter, house: House, poses, renderer: Renderer, opts, min_pixels, classes,
-              seed, lap, changes) -> int:
+              seed, lap, changes, frame_written=None) -> int:
     """Render, detect and write every frame of one lap, then its ground truth; returns its bytes."""
     centers, yaws, sizes, colors, owners = house.primitives()
     classes_of = {oid: o.cls for oid, o in house.objects.items()}
@@ -134,6 +141,8 @@ def write_lap(writer: RecordingWriter, house: House, poses, renderer: Renderer, 
             "mask": mask,
         } for cls, score, scores, mask in dets]
         writer.write_frame(fid, T, rgb, depth_mm, annotations=inst, instances=instances, detector="ltc-simulate")
+        if frame_written is not None:
+            frame_written(i)
 
     objects = []
     for oid, o in house.objects.items():
