@@ -104,7 +104,7 @@ def render_cmd(map_path, output, ground_truth, width, height, labels, show_chang
                    "-1: an empty map). Default: the session before the last, i.e. what the latest visit changed.")
 @click.option("--move-radius", type=click.FloatRange(min=0), default=None, metavar="M",
               help="Largest distance (m) between a removal and an addition of one class that is reported as a move "
-                   "[default: 4].")
+                   "[default: 6].")
 @click.option("--format", "fmt", type=click.Choice(["table", "json", "csv"]), default="table", show_default=True)
 def changes_cmd(map_path, since, move_radius, fmt):
     """List the objects added, removed and moved since a session (from the map's event log)."""

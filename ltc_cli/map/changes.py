@@ -26,9 +26,9 @@ from ltc_cli.errors import LtcError
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
 from ltc_cli.map.query import classify, removal_events
 
-#: Default largest XY distance (m) of a removal and an addition that count as one move: across a
-#: room (furniture goes to another wall), not across a house (measured in docs/decisions.md).
-MOVE_RADIUS = 4.0
+#: Default largest XY distance (m) of a removal and an addition that count as one move: furniture
+#: goes to another wall, small things to another room's table (measured in docs/decisions.md).
+MOVE_RADIUS = 6.0
 #: Nearer than this (m), a removal and an addition of one class are the same object in its place.
 MIN_MOVE = 0.5
 KINDS = ("added", "removed", "moved")
