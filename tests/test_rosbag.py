@@ -18,7 +18,7 @@ from ltc_cli.tools.simulate import simulate
 from ltc_plugins.readers import ros_images
 from ltc_plugins.readers.ros_tf import TfLookupError, TfTree
 from ltc_plugins.readers.rosbag import RosbagReader
-from tests.bags import detections_by_key, png_bytes, write_bag
+from tests.bags import T_BASE_LINK, T_LINK_OPTICAL, T_MAP_ODOM, detections_by_key, png_bytes, write_bag
 from tests.test_folder_reader import assert_same_objects, objects_of
 
 
@@ -71,9 +71,14 @@ def test_frames_pair_colour_and_depth_by_stamp_and_chain_tf(lap, tmp_path):
     want = np.array(lap_poses[5][1:], dtype=float)
     np.testing.assert_allclose(f.T_world_camera[:3, 3], want[:3], atol=1e-9)
     np.testing.assert_allclose(f.T_world_camera[:3, :3], Rotation.from_quat(want[3:]).as_matrix(), atol=1e-9)
-    # The same bag with an odometry-only world and another camera frame named.
-    rec = RosbagReader().open(tmp_path / "b.bag", {"world_frame": "odom", "camera_frame": "base_link"})
-    assert rec.frames[0].load().T_world_camera.shape == (4, 4)
+    # Any two connected frames, either way up the tree: odom seen from the camera mount.
+    rec = RosbagReader().open(tmp_path / "b.bag", {"world_frame": "camera_link", "camera_frame": "odom"})
+    T_world_camera = np.eye(4)
+    T_world_camera[:3, :3] = Rotation.from_quat(np.array(lap_poses[0][4:], dtype=float)).as_matrix()
+    T_world_camera[:3, 3] = np.array(lap_poses[0][1:4], dtype=float)
+    T_odom_base = np.linalg.inv(T_MAP_ODOM) @ T_world_camera @ np.linalg.inv(T_BASE_LINK @ T_LINK_OPTICAL)
+    np.testing.assert_allclose(rec.frames[0].load().T_world_camera, np.linalg.inv(T_odom_base @ T_BASE_LINK),
+                               atol=1e-9)
 
 
 def test_ambiguous_or_missing_topics_are_one_line(lap, tmp_path):

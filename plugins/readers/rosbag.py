@@ -224,9 +224,14 @@ class RosbagReader:
         if camera_frame not in frames:
             raise RecordingError(f"tf has no frame {camera_frame!r} (tf frames: {', '.join(sorted(frames)) or 'none'}); "
                                  "give -r camera_frame=FRAME", p)
-        world_frame = opts["world_frame"] or next((f for f in WORLD_FRAMES if f in frames), tree.root(camera_frame))
+        root = tree.root(camera_frame)  # frames of another tree can never give the camera's pose
+        world_frame = opts["world_frame"] or next((f for f in WORLD_FRAMES if f in frames and tree.root(f) == root),
+                                                  root)
         if world_frame not in frames:
             raise RecordingError(f"tf has no frame {world_frame!r} (tf frames: {', '.join(sorted(frames))})", p)
+        if tree.root(world_frame) != root:
+            raise RecordingError(f"tf does not connect {world_frame!r} and the camera frame {camera_frame!r} "
+                                 f"(their trees' roots are {tree.root(world_frame)!r} and {root!r})", p)
 
         intr = self._intrinsics(opts, info, info_topic, bag, depth_topic, depths[0], p)
         chosen, d_idx = associate_nearest(np.array([m.stamp_ns / 1e9 for m in colors]),
