@@ -121,7 +121,7 @@ def test_simulated_lap_as_a_plain_folder_maps_like_the_lap(tmp_path):
     assert r.exit_code == 0, r.output
     r = runner.invoke(cli, ["ingest", str(root), "--map", str(tmp_path / "plain.h5"),
                             "-r", f"intrinsics={cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}", "-r", "up=z",
-                            "--set", f"detector.options.folder={LAP1 / 'detections'}", "--set", f"map.classes={classes}"])
+                            "--set", f"detector.options.folder={LAP1 / 'detections'}", "-r", f"classes={classes}"])
     assert r.exit_code == 0, r.output
     assert_same_objects(objects_of(tmp_path / "plain.h5"), objects_of(tmp_path / "lap.h5"), tol=1e-9)
 

@@ -53,7 +53,7 @@ def test_bag_maps_like_the_lap_folder(name, lap, tmp_path):
     dets = detections_by_key(lap_dir, keys, tmp_path / "dets")
     classes = yaml.safe_load((lap_dir / "recording.yaml").read_text())["classes"]
     r = CliRunner().invoke(cli, ["ingest", str(bag), "--map", str(tmp_path / "bag.h5"), *extra,
-                                 "--set", f"detector.options.folder={dets}", "--set", f"map.classes={classes}"])
+                                 "--set", f"detector.options.folder={dets}", "-r", f"classes={classes}"])
     assert r.exit_code == 0, r.output
     assert f"{len(keys)} frames ingested, 0 skipped" in r.output
     assert_same_objects(objects_of(tmp_path / "bag.h5"), lap_objects, tol=1e-3)

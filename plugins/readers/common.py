@@ -66,6 +66,11 @@ COMMON_OPTIONS = {
 }  # fmt: skip
 
 
+#: The class list of a layout that has no file for it (what recording.yaml's ``classes`` says).
+CLASSES_OPTION = {"type": "array", "items": {"type": "string", "minLength": 1}, "uniqueItems": True,
+                  "description": "the recording's class list, e.g. [chair, couch, dining table]"}
+
+
 def options_schema(depth_scale: float, up, **extra: dict) -> dict:
     """The options schema of a reader: the common options with this layout's defaults, and its own."""
     props = {

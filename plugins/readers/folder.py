@@ -26,7 +26,7 @@ from ltc_cli import hookimpl
 from ltc_cli.errors import FrameError, RecordingError
 from ltc_cli.types import Recording
 from ltc_plugins.readers.common import (
-    FrameSource, ImageFormat, checked_matrix_pose, first_existing, first_size, frame_refs, identity,
+    CLASSES_OPTION, FrameSource, ImageFormat, checked_matrix_pose, first_existing, first_size, frame_refs, identity,
     intrinsics_option, make_intrinsics, open_folder, options_schema, quaternion_pose, read_bytes,
     up_option,
 )  # fmt: skip
@@ -43,6 +43,7 @@ OPTIONS_SCHEMA = options_schema(
     color={**_NAME, "description": f"colour image folder (default: the first of {', '.join(COLOR_DIRS)})"},
     depth={**_NAME, "default": "depth", "description": "depth image folder"},
     poses={**_NAME, "description": f"pose file (default: the first of {', '.join(POSE_FILES)})"},
+    classes=CLASSES_OPTION,
 )  # fmt: skip
 
 _NUMBER_RUN = re.compile(r"(\d+)")
@@ -205,7 +206,7 @@ class FolderReader:
                                ("camera", camera_text.encode())]),
             intrinsics=intr,
             frames=frame_refs(sources, ImageFormat(intr, depth_scale)),
-            up=up_option(opts, self.name),
+            up=up_option(opts, self.name), classes=opts.get("classes"),
             meta={"reader": self.name, "depth_scale": depth_scale, "color": color_dir.name,
                   "depth": depth_dir.name, "poses": pose_path.name},
         )

@@ -38,7 +38,8 @@ from ltc_cli.errors import FrameError, RecordingError
 from ltc_cli.types import Frame, FrameRef, Recording
 from ltc_plugins.readers import ros_images
 from ltc_plugins.readers.common import (
-    associate_nearest, identity, intrinsics_option, make_intrinsics, open_folder, options_schema, up_option,
+    CLASSES_OPTION, associate_nearest, identity, intrinsics_option, make_intrinsics, open_folder, options_schema,
+    up_option,
 )  # fmt: skip
 from ltc_plugins.readers.ros_tf import TfLookupError, TfTree
 
@@ -59,6 +60,7 @@ OPTIONS_SCHEMA = options_schema(
     camera_frame={**_TOPIC, "description": "tf frame of the camera (default: the depth images' header.frame_id)"},
     max_time_diff={**_SECONDS, "default": 0.02, "description": "seconds between paired colour and depth stamps"},
     max_pose_gap={**_SECONDS, "default": 0.5, "description": "longest gap between tf stamps to interpolate over"},
+    classes=CLASSES_OPTION,
 )  # fmt: skip
 
 
@@ -254,7 +256,7 @@ class RosbagReader:
             path=str(p), format="rosbag",
             identity=identity([("topics", chosen_topics.encode()), ("frames", " ".join(sorted(seen)).encode()),
                                ("camera", repr((intr, float(opts["depth_scale"]))).encode())]),
-            intrinsics=intr, frames=refs, up=up_option(opts, self.name),
+            intrinsics=intr, frames=refs, up=up_option(opts, self.name), classes=opts.get("classes"),
             meta={"reader": self.name, "color_topic": color_topic, "depth_topic": depth_topic,
                   "camera_info_topic": info_topic, "world_frame": world_frame, "camera_frame": camera_frame,
                   "depth_scale": float(opts["depth_scale"]), "unassociated": len(colors) - len(refs)},
