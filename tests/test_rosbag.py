@@ -170,5 +170,9 @@ def test_compressed_depth_16_and_32_bit():
     inv = np.array([[4041, 1011], [0, 4041]], np.uint16)
     msg = Msg(format="32FC1; compressedDepth png", data=struct.pack("<iff", 0, a, b) + png_bytes(inv))
     np.testing.assert_allclose(ros_images.compressed_depth(msg, 1000.0), [[2.0, 5.0], [0.0, 2.0]], rtol=1e-6)
+    # A plain 16-bit PNG (image_transport's "png" of 16UC1 depth): no header, the same values.
+    msg = Msg(format="16UC1; png compressed", data=png_bytes(raw))
+    assert ros_images.is_compressed_depth(msg.format) and not ros_images.is_compressed_depth("bgr8; jpeg compressed bgr8")
+    np.testing.assert_allclose(ros_images.compressed_depth(msg, 1000.0), [[1.0, 0], [2.5, 4.0]])
     with pytest.raises(ValueError, match="RVL"):
         ros_images.compressed_depth(Msg(format="16UC1; compressedDepth rvl", data=b""), 1000.0)

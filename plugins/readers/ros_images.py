@@ -30,7 +30,9 @@ _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 def is_compressed_depth(fmt: str) -> bool:
-    return "compresseddepth" in fmt.replace(" ", "").lower()
+    """A CompressedImage format of depth: the compressedDepth transport, or a 16-bit PNG of raw
+    depth ("16UC1; png compressed")."""
+    return "compresseddepth" in fmt.replace(" ", "").lower() or fmt.split(";")[0].strip() in ("16UC1", "mono16")
 
 
 def _pixels(msg, dtype: np.dtype, channels: int) -> np.ndarray:
