@@ -20,6 +20,7 @@ from ltc_cli import __version__, plugins
 from ltc_cli.config import load_config
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.signals import stop_on_signals
+from ltc_cli.text import plural
 
 
 class LtcGroup(click.Group):
@@ -42,8 +43,7 @@ def cli(debug):
     """ltc: object-oriented semantic maps that stay true over months (LTC-Mapping)."""
 
 
-def _plural(n: int, word: str) -> str:
-    return f"{n} {word}{'' if n == 1 else 's'}"
+_plural = plural
 
 
 def _warn(message: str) -> None:
@@ -61,6 +61,26 @@ def _progress(label: str, count: Callable[[], int]):
         yield bar.update
 
 
+_READER_OPTION_HELP = ("A reader option, value read as YAML (repeat for several), e.g. -r intrinsics=518,519,325.5,253.5 "
+                       "for a plain folder, or -r color_topic=/camera/color/image_raw for a bag.")
+
+
+def reader_options(items) -> dict:
+    """-r KEY=VALUE items -> the reader's options mapping (dotted keys nest, values are YAML)."""
+    from ltc_cli.config import parse_set
+
+    out: dict = {}
+    for item in items:
+        if "=" not in item.strip("="):
+            raise click.BadParameter(f"expected KEY=VALUE, not {item!r}", param_hint="--reader-option")
+        key, value = next(iter(parse_set(item).items()))
+        if isinstance(value, dict) and isinstance(out.get(key), dict):  # -r a.b=1 -r a.c=2: both
+            out[key] = {**out[key], **value}
+        else:
+            out[key] = value
+    return out
+
+
 @cli.command()
 @click.argument("recordings", nargs=-1, required=True, type=click.Path())
 @click.option("--map", "map_path", required=True, type=click.Path(dir_okay=False), help="The map file (.h5); created if absent.")
@@ -73,13 +93,14 @@ def _progress(label: str, count: Callable[[], int]):
 @click.option("--checkpoint-every", default=50, show_default=True, type=click.IntRange(min=0), help="Commit the map every N frames (0: only at the end).")
 @click.option("--strict", is_flag=True, help="Stop at the first bad frame instead of skipping it.")
 @click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
+@click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=_READER_OPTION_HELP)
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Threads that load and detect the next frames while the current one is mapped (the map is the same as with 1).")
 @click.option("--revisit", is_flag=True,
               help="Map recordings already in the map again, as a new session (the same route driven again); "
                    "an interrupted revisit resumes with the same command.")
 def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict,
-           reader, jobs, revisit):
+           reader, reader_opts, jobs, revisit):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     # The handlers go in before anything slow (imports, reading settings, opening recordings), so
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
@@ -96,9 +117,10 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         if policy:
             cfg["maintenance"]["policy"] = policy
         calib = load_calibration(calibration) if calibration else None
-        with _progress("ingest", lambda: count_frames(recordings, reader)) as progress:
+        r_opts = reader_options(reader_opts)
+        with _progress("ingest", lambda: count_frames(recordings, reader, r_opts)) as progress:
             summary = run_ingest(
-                list(recordings), map_path, cfg, reader=reader, calibration=calib,
+                list(recordings), map_path, cfg, reader=reader, reader_options=r_opts, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=_warn,
                 should_stop=lambda: stop["signal"] is not None, jobs=jobs, revisit=revisit,
             )
@@ -165,13 +187,14 @@ def info(map_path, fmt):
     click.echo(f"objects      {o['active']} active, {o['removed']} removed, {o['merged']} merged")
     for name, n in doc["per_class"].items():
         click.echo(f"  {name:<18} {n}")
-    click.echo(f"frames       {doc['frames']} ingested; {doc['events']} events logged")
+    click.echo(f"frames       {doc['frames']} ingested; {_plural(doc['events'], 'event')} logged")
     click.echo(f"sessions     {len(smap.sessions)}")
     for i, s in enumerate(doc["sessions"]):
         visit = f"  visit {s['visit']}" if s["visit"] > 1 else ""
         click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped){visit}  "
                    f"{s['detector']}/{s['metric']}/{s['policy']} v_other={s['v_other']:.3g}  {', '.join(s['sources'])}")
-    click.echo(f"{map_path}: {o['active']} objects of {len(per_class)} classes from {len(smap.frame_keys)} frames in {len(smap.sessions)} sessions")
+    click.echo(f"{map_path}: {_plural(o['active'], 'object')} of {_plural(len(per_class), 'class')} from "
+               f"{_plural(len(smap.frame_keys), 'frame')} in {_plural(len(smap.sessions), 'session')}")
 
 
 @cli.command("plugins")
@@ -242,89 +265,65 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
     click.echo(f"{map_path}: {len(recs)} of {result.total} {kind}", err=True)
 
 
-@cli.command("export")
-@click.argument("map_path", type=click.Path())
-@click.option("--format", "fmt", type=click.Choice(["json", "geojson"]), required=True)
-@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here (atomically) instead of stdout.")
-@click.option("--origin", metavar="LAT,LON[,HEADING_DEG]",
-              help="GeoJSON in WGS84 longitude/latitude: the map origin's latitude and longitude (degrees) and the "
-                   "bearing of the map's +y axis (degrees clockwise from true north; default 0).")
-def export_cmd(map_path, fmt, output, origin):
-    """Export the active objects of MAP.h5 as JSON or GeoJSON (RFC 7946)."""
-    from ltc_cli.map import export as ex
-    from ltc_cli.map.store import load_map
-
-    geo_origin = None
-    if origin is not None:
-        if fmt != "geojson":
-            raise click.UsageError("--origin applies to --format geojson only")
-        try:
-            geo_origin = ex.parse_origin(origin)
-        except ex.ExportError as exc:
-            raise click.BadParameter(exc.message, param_hint="--origin") from None
-    smap = load_map(map_path)
-    doc = ex.export_json(smap, map_path) if fmt == "json" else ex.export_geojson(smap, geo_origin, map_path)
-    text = ex.dumps(doc)
-    if output:
-        ex.write_atomic(output, text)
-    else:
-        click.echo(text, nl=False)
-    n = len(doc["objects"] if fmt == "json" else doc["features"])
-    crs = "" if fmt == "json" else (" (WGS84 lon/lat)" if geo_origin else " (local metres)")
-    click.echo(f"{map_path}: {n} objects exported as {fmt}{crs} to {output or 'stdout'}", err=True)
-
-
-@cli.command("render")
-@click.argument("map_path", type=click.Path())
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The PNG to write.")
-@click.option("--ground-truth", "ground_truth", type=click.Path(), metavar="FILE|RECORDING",
-              help="ground_truth.json, or a recording folder holding one: drawn beneath as dashed outlines.")
-@click.option("--width", default=1200, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
-@click.option("--height", default=900, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
-@click.option("--labels/--no-labels", default=None, help="Label objects 'class #id' (default: when at most 300).")
-def render_cmd(map_path, output, ground_truth, width, height, labels):
-    """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a PNG."""
-    from pathlib import Path
-
-    from ltc_cli.map.render import load_ground_truth, render_map
-    from ltc_cli.map.store import load_map
-
-    smap = load_map(map_path)
-    gt = load_ground_truth(ground_truth) if ground_truth else None
-    res = render_map(smap, output, ground_truth=gt, width=width, height=height, labels=labels,
-                     map_name=Path(map_path).name)
-    extra = f", {res.ground_truth} ground-truth boxes" if gt is not None else ""
-    click.echo(f"{output}: {res.width}x{res.height} px, {_plural(res.objects, 'object')}{extra}")
+# Static (importing the simulator to read its DEFAULTS would slow every ltc command by half a
+# second); tests/test_cli_help.py checks it against DEFAULTS.
+SIMULATE_OPTIONS_HELP = (
+    "A simulator option, repeat for several, e.g. --set miss_rate=0.3. Detector: miss_rate (0.15), "
+    "confusion_rate (0.05), false_positive_rate (0.05, per frame), split_rate (0.03), bleed_px (3), "
+    "min_pixels (auto: 5e-4 of the image); depth sensor: depth_noise (0.005 m at 1 m), depth_resolution "
+    "(0.003), noise_block (8), min_range (0.3), max_range (8.0), rgb_noise (2.0); between laps: "
+    "moved_fraction (0.15), removed_fraction (0.1), added_fraction (0.1); robot: frames_per_room (auto), "
+    "transit_step (0.8 m), camera_height (1.0 m), camera_pitch_deg (12.0); realistic failure modes (0 in "
+    "the benign profile; the realistic profile's value in brackets): pose_drift_m (0 [0.04]), pose_drift_deg "
+    "(0 [1.5]), pose_jitter_m (0 [0.005]), pose_jitter_deg (0 [0.2]), drift_frames (15), class_miss (0 [1]), "
+    "oblique_miss (0 [0.5]), view_correlation (0 [0.85]), correlation_frames (6), mislabel_objects (0 [0.25]), "
+    "mislabel_share (0 [0.35]), phantoms_per_room (0 [1]), cnn_masks (0 [1]), dark_dropout (0 [0.5]), "
+    "shiny_dropout (0 [0.25]), flying_pixels (0 [0.5]), size_variation (0 [0.12]), people_per_room (0 [1]).")
 
 
 @cli.command()
 @click.argument("outdir", type=click.Path(file_okay=False))
-@click.option("--scene", type=click.Choice(["tiny", "small", "medium", "large"]), default="small", show_default=True)
-@click.option("--laps", type=click.IntRange(1, 100), default=2, show_default=True)
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
-@click.option("--width", type=click.IntRange(min=16), default=640, show_default=True)
-@click.option("--height", type=click.IntRange(min=16), default=480, show_default=True)
+@click.option("--scene", type=click.Choice(["tiny", "small", "medium", "large"]), default="small", show_default=True,
+              help="House size: tiny (1 room, 12 frames a lap, for tests), small (2 rooms), medium (4), large (6).")
+@click.option("--laps", type=click.IntRange(1, 100), default=2, show_default=True,
+              help="Laps of the same path; between laps objects are moved, removed and added.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Random seed: the same arguments give byte-identical files.")
+@click.option("--width", type=click.IntRange(min=16), default=640, show_default=True, help="Image width, pixels.")
+@click.option("--height", type=click.IntRange(min=16), default=480, show_default=True, help="Image height, pixels.")
 @click.option("--profile", type=click.Choice(["realistic", "benign"]), default="realistic", show_default=True,
               help="realistic: the failure modes of real data (pose drift, per-class and correlated misses, "
                    "systematic mislabels, recurring phantoms, CNN-like masks, depth holes and flying pixels, "
                    "varied sizes, people walking through); benign: independent per-frame detector noise and "
                    "exact poses (how sample_data/ was made). See docs/simulator.md.")
-@click.option("--set", "sets", multiple=True, metavar="OPTION=VALUE",
-              help="A simulator option over the profile's, e.g. --set miss_rate=0.3 or --set people_per_room=0 "
-                   "(see docs/simulator.md).")
+@click.option("--set", "sets", multiple=True, metavar="OPTION=VALUE", help=SIMULATE_OPTIONS_HELP)
 def simulate(outdir, scene, laps, seed, width, height, profile, sets):
-    """Write a synthetic house as ltc-recording/1 folders OUTDIR/lap1, lap2, ..."""
+    """Write a synthetic house as ltc-recording/1 folders OUTDIR/lap1, lap2, ... (with ground truth,
+    annotations and a noisy recorded detector)."""
     from ltc_cli.config import parse_set
     from ltc_cli.tools.simulate import simulate as run_simulate
 
     options = {}
     for item in sets:
         options.update(parse_set(item))
-    summary = run_simulate(outdir, scene=scene, laps=laps, seed=seed, width=width, height=height, profile=profile,
-                           **options)
+    bar = None
+
+    def progress(done, total):
+        nonlocal bar
+        if bar is None:
+            bar = click.progressbar(length=total, label="simulate", file=sys.stderr)
+            bar.__enter__()
+        bar.update(1)
+
+    try:
+        summary = run_simulate(outdir, scene=scene, laps=laps, seed=seed, width=width, height=height, profile=profile,
+                               progress=progress if sys.stderr.isatty() else None, **options)
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
     frames = sum(lap["frames"] for lap in summary["laps"])
     click.echo(f"{outdir}: {_plural(len(summary['laps']), 'lap')} of the {scene} house (seed {seed}), "
-               f"{profile} profile, {frames} frames, {summary['bytes'] / 1e6:.1f} MB")
+               f"{profile} profile, {_plural(frames, 'frame')}, {summary['bytes'] / 1e6:.1f} MB")
 
 
 def _fmt(v, spec=".3f"):
@@ -366,8 +365,9 @@ def evaluate(map_path, gt_path, prev_paths, max_distance, fmt):
 @click.option("--min-pixels", type=click.IntRange(min=1), help="Fewest visible pixels of an instance that counts (default: maintenance.min_visible_pixels scaled to the image area).")
 @click.option("--iou", "iou_threshold", default=0.5, show_default=True, type=click.FloatRange(0, 1, min_open=True), help="Mask IoU for a detection to match an instance.")
 @click.option("--format", "reader", help="Recording reader (default: detected from the folder).")
+@click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=_READER_OPTION_HELP)
 @click.option("--table", is_flag=True, help="Print the per-class figures before the summary.")
-def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, table):
+def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, iou_threshold, reader, reader_opts, table):
     """Measure a detector on RECORDING's ground-truth instance masks; write v_Other and the figures."""
     from ltc_cli.recordings.open import count_frames
     from ltc_cli.tools.calibrate import calibrate
@@ -376,9 +376,10 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
     cfg = load_config(config_file, sets)
     if detector:
         cfg["detector"]["name"] = detector
-    with _progress("calibrate", lambda: count_frames([recording], reader)) as progress:
+    r_opts = reader_options(reader_opts)
+    with _progress("calibrate", lambda: count_frames([recording], reader, r_opts)) as progress:
         cal = calibrate(
-            recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader,
+            recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader, reader_options=r_opts,
             min_visible_pixels=cfg["maintenance"]["min_visible_pixels"], min_pixels=min_pixels,
             iou_threshold=iou_threshold, progress=progress, warn=_warn,
         )
@@ -395,6 +396,10 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
         f"recall {_fmt(doc['recall'], '.2f')} (any class {_fmt(doc['detection_rate'], '.2f')}), "
         f"precision {_fmt(doc['precision'], '.2f')}, v_other {doc['v_other']:.2f}"
     )
+
+
+# The commands that look at a map's history and at it in 3D join the group from their own module.
+from ltc_cli import cli_views  # noqa: E402,F401
 
 
 def main():

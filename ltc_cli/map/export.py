@@ -56,6 +56,13 @@ _METRE_DECIMALS = 4  # 0.1 mm, the same resolution in local coordinates
 _VALUE_DECIMALS = 6  # metres / radians / probabilities in properties and the JSON export
 
 
+#: Written into local-metre GeoJSON: RFC 7946 readers (QGIS, geojson.io, ...) take every position as
+#: WGS84 longitude / latitude, so a room in metres shows up as a speck near (0 deg, 0 deg).
+LOCAL_NOTE = ("coordinates are map-frame metres [x, y], NOT longitude/latitude: GIS tools will draw them "
+              "near (0, 0) degrees off the coast of Africa; export with --origin LAT,LON[,HEADING_DEG] "
+              "for WGS84")
+
+
 class ExportError(LtcError):
     """An export that cannot be made (bad origin, unwritable output file)."""
 
@@ -301,6 +308,7 @@ def _export_geojson(smap: SemanticMap, origin=None, map_path=None) -> dict:
         "type": "FeatureCollection",
         "ltc:format": GEOJSON_FORMAT,
         "ltc:crs": CRS_LOCAL if origin is None else CRS_WGS84,
+        **({"ltc:note": LOCAL_NOTE} if origin is None else {}),
         "ltc:origin": None if origin is None else {
             "lat": origin[0], "lon": origin[1], "heading_deg": origin[2],
             "convention": "heading_deg = bearing of the map's +y axis, degrees clockwise from true "

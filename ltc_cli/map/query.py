@@ -210,10 +210,14 @@ def table_lines(recs: list[dict], result: QueryResult) -> list[str]:
     """An aligned text table: one header line, then one line per record.
 
     Numbers are right-aligned with fixed decimals (centimetres for positions, 0.001 rad for yaw),
-    text left-aligned; ``why`` (the removal detail) is last so that long texts do not break alignment.
+    text left-aligned; "conf" is the class's score, "detections" / "missed" count the frames that
+    detected the object / should have and did not; ``why`` (the removal detail) is last so that long texts do not break alignment.
     """
-    header = ["id", "class", "conf", "x", "y", "z", "yaw", "sx", "sy", "sz", "def", "det", "nondet", "last seen"]
-    right = [True, False, True, True, True, True, True, True, True, True, False, True, True, False]
+    # Words, not abbreviations: "detections" the frames that detected it, "missed" the frames that
+    # should have and did not (non-detections); last seen in which session, at which of its frames.
+    header = ["id", "class", "conf", "x", "y", "z", "yaw", "sx", "sy", "sz", "defined", "detections", "missed",
+              "last session", "last frame"]
+    right = [True, False, True, True, True, True, True, True, True, True, False, True, True, True, True]
     if result.distance is not None:
         header.append("dist")
         right.append(True)
@@ -226,7 +230,7 @@ def table_lines(recs: list[dict], result: QueryResult) -> list[str]:
         cells = [str(r["id"]), r["class"], f"{r['confidence']:.3f}", f"{c[0]:.2f}", f"{c[1]:.2f}",
                  f"{c[2]:.2f}", f"{r['yaw']:.3f}", f"{s[0]:.2f}", f"{s[1]:.2f}", f"{s[2]:.2f}",
                  "yes" if r["defined"] else "no", str(r["n_det"]), str(r["n_nondet"]),
-                 f"{r['last_seen']['session']}/{r['last_seen']['frame']}"]
+                 str(r["last_seen"]["session"]), str(r["last_seen"]["frame"])]
         if "distance" in r:
             cells.append(f"{r['distance']:.2f}")
         if "removed" in r:

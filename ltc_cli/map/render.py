@@ -24,6 +24,7 @@ from ltc_cli.fileio import atomic_target
 from ltc_cli.geometry.boxes import box_corners
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.query import classify
+from ltc_cli.map.render_marks import CHANGE_COLOURS, draw_changes, place_labels
 from ltc_cli.recordings.groundtruth import read_ground_truth
 
 FILL_ALPHA = 0.35          # footprint fill over the white background
@@ -65,6 +66,33 @@ def class_colour(name: str) -> tuple[float, float, float]:
     return tuple(int(h[i: i + 2], 16) / 255.0 for i in (0, 2, 4))
 
 
+def class_colours(names) -> dict[str, tuple[float, float, float]]:
+    """A distinct colour for each class of one picture: its :func:`class_colour` unless a class
+    before it (common classes first, then by name) took that entry, else the next free entry of the
+    PALETTE, and beyond the palette evenly spread hues. So a chair keeps its colour everywhere and no
+    two classes of one picture look alike (oven and cup share an entry by their names)."""
+    import colorsys
+
+    order = sorted(set(names), key=lambda n: (n.strip().lower() not in _KNOWN, n))
+    taken: set[int] = set()
+    out = {}
+    extra = 0
+    for name in order:
+        key = name.strip().lower()
+        idx = _KNOWN.get(key, zlib.crc32(key.encode("utf-8")) % len(PALETTE))
+        free = [i for i in range(len(PALETTE)) if i not in taken]
+        if idx in taken:
+            idx = min(free, key=lambda i: (i - idx) % len(PALETTE)) if free else None
+        if idx is None:  # more classes than palette entries: golden-ratio hues, darker than the fill
+            extra += 1
+            out[name] = colorsys.hsv_to_rgb((extra * 0.618034) % 1.0, 0.75, 0.8)
+            continue
+        taken.add(idx)
+        h = PALETTE[idx].lstrip("#")
+        out[name] = tuple(int(h[i: i + 2], 16) / 255.0 for i in (0, 2, 4))
+    return out
+
+
 def load_ground_truth(path) -> list[dict]:
     """Objects of a ground_truth.json (ltc-ground-truth/1), or of the one in a recording folder.
 
@@ -89,6 +117,9 @@ class RenderResult:
     world_to_pixel: np.ndarray
     xlim: tuple[float, float]
     ylim: tuple[float, float]
+    label_boxes: list = None  # pixel boxes (x0, y0, x1, y1) of the labels drawn, origin bottom-left
+    changes: dict = None  # {"added": n, "removed": n, "moved": n} drawn with ``changes``
+    format: str = "PNG"
 
     def to_pixel(self, xy) -> np.ndarray:
         """Map points (..., 2) metres -> (..., 2) [column, row] image coordinates (floats)."""
@@ -127,8 +158,10 @@ def render_map(
     title: str | None = None,
     bounds: tuple[float, float, float, float] | None = None,
     map_name: str | None = None,
+    changes: list | None = None,
 ) -> RenderResult:
-    """Draw the map's active objects top-down and write a PNG of exactly ``width`` x ``height``.
+    """Draw the map's active objects top-down and write a picture of exactly ``width`` x ``height``:
+    PNG, or JPEG / WebP / TIFF / BMP when ``out_path`` ends so (:func:`picture_format`).
 
     ground_truth: objects as from :func:`load_ground_truth` (dicts with class, center, yaw, size),
         drawn beneath as dashed grey outlines.
@@ -137,6 +170,8 @@ def render_map(
     bounds: (xmin, xmax, ymin, ymax) metres to show (then widened on one axis to keep the scale
         equal); default: everything drawn, padded.
     map_name: shown at the start of the default title.
+    changes: :class:`~ltc_cli.map.changes.Change` list (``ltc changes``), marked over the map
+        (:func:`~ltc_cli.map.render_marks.draw_changes`).
     The file is written atomically (temporary file beside it, then ``os.replace``).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -152,6 +187,7 @@ def render_map(
         if not MIN_PIXELS <= v <= MAX_PIXELS:
             raise RenderError(f"{name} must be within {MIN_PIXELS}..{MAX_PIXELS} pixels, not {v}")
     out_path = Path(out_path)
+    fmt = picture_format(out_path)
 
     t = smap.objects
     rows = smap.active_rows()
@@ -184,7 +220,9 @@ def render_map(
         if not (xlim[1] > xlim[0] and ylim[1] > ylim[0]):
             raise RenderError(f"bounds must be xmin < xmax, ymin < ymax, not {tuple(bounds)}")
     else:
-        xlim, ylim = _bounds([rings, gt_rings])
+        gone = [box_corners(np.asarray(c.center), c.yaw, np.asarray(c.size))[None, :4, :2]
+                for c in changes or () if c.kind != "added"]
+        xlim, ylim = _bounds([rings, gt_rings, *gone])
     # Outlines thinner than the footprints they draw: with thousands of small boxes 1.4 pt lines
     # would cover the fills. ~0.8 of the width is the axes; a tenth of a typical footprint.
     px_per_m = 0.8 * min(width / (xlim[1] - xlim[0]), height / (ylim[1] - ylim[0]))
@@ -198,21 +236,21 @@ def render_map(
         handles.append(Line2D([], [], color=GT_COLOUR, linestyle=(0, (4, 3)), linewidth=1.1,
                               label=f"ground truth ({len(gt_rings)})"))
     present = sorted(set(cls_idx.tolist()), key=lambda i: smap.classes[i])
+    colours = class_colours(smap.classes[i] for i in present)
     for ci in present:
         sel = cls_idx == ci
-        rgb = class_colour(smap.classes[ci])
+        rgb = colours[smap.classes[ci]]
         # Fill and edge colours carry their own alpha: the collection-wide alpha would also fade
         # the outlines.
         ax.add_collection(PolyCollection(list(rings[sel]), closed=True, facecolors=[(*rgb, FILL_ALPHA)],
                                          edgecolors=[(*rgb, 1.0)], linewidths=lw, zorder=2))
         handles.append(Patch(facecolor=(*rgb, FILL_ALPHA), edgecolor=rgb, linewidth=1.4,
                              label=f"{smap.classes[ci]} ({int(sel.sum())})"))
-    if labels and len(rows):
-        centres = t.center[rows, :2]
-        for (x, y), ci, oid in zip(centres.tolist(), cls_idx.tolist(), t.ids[rows].tolist()):
-            ax.text(x, y, f"{smap.classes[ci]} #{oid}", ha="center", va="center", fontsize=7, zorder=3,
-                    color="#202020", clip_on=True,
-                    bbox=dict(boxstyle="round,pad=0.15", facecolor="white", edgecolor="none", alpha=0.7))
+    change_counts = draw_changes(ax, changes, lw) if changes is not None else None
+    if change_counts:
+        for kind, n in change_counts.items():
+            handles.append(Line2D([], [], color=CHANGE_COLOURS[kind], linewidth=2.2,
+                                  linestyle=(0, (3, 2)) if kind == "removed" else "solid", label=f"{kind} ({n})"))
 
     def fit_limits():
         # Set the data limits, not the view limits: with an equal aspect and adjustable="datalim"
@@ -240,6 +278,14 @@ def render_map(
     # a little; freeze the layout it found and fit the limits to that box once more.
     fig.set_layout_engine("none")
     fit_limits()
+    label_boxes = []
+    if labels and len(rows):
+        # Placed now that the axes are final, so that their pixel extents are the saved ones;
+        # the biggest objects choose first.
+        order = np.argsort(-(t.size[rows, 0] * t.size[rows, 1]), kind="stable")
+        items = [(float(t.center[rows[k], 0]), float(t.center[rows[k], 1]),
+                  f"{smap.classes[int(cls_idx[k])]} #{int(rows[k]) + 1}") for k in order]
+        label_boxes = place_labels(ax, canvas.get_renderer(), items)
     canvas.draw()
     buf = np.asarray(canvas.buffer_rgba())[..., :3]
     # Figure sizes are floats; guard against a pixel lost to rounding (pad with white / crop).
@@ -254,8 +300,24 @@ def render_map(
 
     try:
         with atomic_target(out_path) as tmp:
-            Image.fromarray(np.ascontiguousarray(buf)).save(tmp, format="PNG", optimize=False)
+            Image.fromarray(np.ascontiguousarray(buf)).save(tmp, format=fmt, **_SAVE_OPTIONS.get(fmt, {}))
     except OSError as exc:
         raise RenderError(f"cannot write the picture ({exc.strerror or exc})", out_path) from None
     return RenderResult(str(out_path), width, height, int(len(rows)), int(len(gt_rings)), bool(labels), M,
-                        tuple(map(float, xlim_drawn)), tuple(map(float, ylim_drawn)))
+                        tuple(map(float, xlim_drawn)), tuple(map(float, ylim_drawn)), label_boxes,
+                        change_counts, fmt)
+
+
+_FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".webp": "WEBP", ".tif": "TIFF", ".tiff": "TIFF",
+            ".bmp": "BMP"}
+_SAVE_OPTIONS = {"PNG": {"optimize": False}, "JPEG": {"quality": 92}, "WEBP": {"quality": 92}}
+
+
+def picture_format(path) -> str:
+    """The Pillow format a picture is written in, by the file's suffix (none: PNG)."""
+    suffix = Path(path).suffix.lower()
+    if not suffix:
+        return "PNG"
+    if suffix not in _FORMATS:
+        raise RenderError(f"cannot write {suffix} pictures (write {', '.join(sorted(_FORMATS))})", path)
+    return _FORMATS[suffix]

@@ -26,6 +26,7 @@ from ltc_cli.pipeline.maintenance import (
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.modeling import model_detections
+from ltc_cli.text import plural
 from ltc_cli.types import Intrinsics
 
 
@@ -275,8 +276,8 @@ class Mapper:
             self._touch(int(row))
             self._set_status(int(row), REMOVED)
             self._log(frame_index, frame_key, "removed", row + 1,
-                      detail=(f"unconfirmed: {int(t.n_det[row])} detection(s) in {int(t.n_clear[row])} clear views "
-                              f"in the session that created it (needs {min_detections}"
+                      detail=(f"unconfirmed: {plural(int(t.n_det[row]), 'detection')} in {int(t.n_clear[row])} clear "
+                              f"views in the session that created it (needs {min_detections}"
                               + (f" and {min_share:.0%} of its clear views)" if min_share else ")")))
         self._settle()
         return len(rows)
@@ -341,7 +342,7 @@ class Mapper:
         self._set_status(row, REMOVED)
         top = int(top_class(s))
         detail = (f"other {s[-1]:.3f} > {self.map.classes[top]} {s[top]:.3f} after "
-                  f"{int(t.n_nondet[row])} non-detections and {int(t.n_det[row])} detections")
+                  f"{plural(int(t.n_nondet[row]), 'non-detection')} and {plural(int(t.n_det[row]), 'detection')}")
         self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
         return True
 

@@ -24,6 +24,6 @@ def open_recording(path, reader: str | None = None, options: dict | None = None)
     raise RecordingError(f"no reader recognises this folder (installed readers: {known})", p)
 
 
-def count_frames(paths, reader: str | None = None) -> int:
+def count_frames(paths, reader: str | None = None, options: dict | None = None) -> int:
     """The number of frames of the recordings at ``paths`` (for a progress bar)."""
-    return sum(len(open_recording(p, reader)) for p in paths)
+    return sum(len(open_recording(p, reader, options)) for p in paths)

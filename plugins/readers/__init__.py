@@ -1,7 +1,8 @@
 """Recording readers (DESIGN.md section 3): the native ``ltc-recording/1`` layout
 (:mod:`.ltc_recording`, its own entry point) and the layouts users already have: TUM RGB-D
 (:mod:`.tum`), 7-Scenes / 3DMatch (:mod:`.seven_scenes`) and the ScanNet export layout
-(:mod:`.scannet`), all built on :mod:`.common`.
+(:mod:`.scannet`), all built on :mod:`.common`. A plain folder of images with the camera given as
+options (:mod:`.folder`) and ROS bags (:mod:`.rosbag`) are registered by entry points of their own.
 
 Each reader has ``sniff(path) -> bool`` (cheap, never raises) and ``open(path, options) ->
 Recording``. Opening parses the index and pose files only; images are read by each frame's lazy
@@ -12,7 +13,8 @@ Options are checked against each reader's ``OPTIONS_SCHEMA`` (JSON Schema; an un
 error). Common to the readers of existing layouts (all optional):
 
 - ``depth_scale``: metres = stored value / depth_scale (TUM 5000, 7-Scenes and ScanNet 1000).
-- ``intrinsics``: ``{fx, fy, cx, cy}`` (or a list in that order) overriding the layout's camera.
+- ``intrinsics``: ``{fx, fy, cx, cy}`` (or a list in that order, or the text ``"fx,fy,cx,cy"``)
+  overriding the layout's camera (the plain folder's only source of it).
 - ``up``: the world's up direction: ``"estimate"``, ``null`` (already z-up), an axis name such as
   ``"-y"`` or a 3-vector; overrides the layout's default (TUM and 7-Scenes: estimate; ScanNet: z-up).
 

@@ -38,7 +38,7 @@ _POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 COMMON_OPTIONS = {
     "depth_scale": {**_POSITIVE, "description": "metres = stored depth value / depth_scale"},
     "intrinsics": {
-        "description": "{fx, fy, cx, cy} or [fx, fy, cx, cy] with positive fx, fy (overrides the layout's camera)",
+        "description": "{fx, fy, cx, cy}, [fx, fy, cx, cy] or \"fx,fy,cx,cy\" in pixels, with positive fx, fy (overrides the layout's camera)",
         "oneOf": [
             {
                 "type": "object",
@@ -49,6 +49,8 @@ COMMON_OPTIONS = {
             },
             {"type": "array", "prefixItems": [_POSITIVE, _POSITIVE, {"type": "number"}, {"type": "number"}],
              "minItems": 4, "maxItems": 4},
+            # "FX,FY,CX,CY" as typed on a command line (-r intrinsics=518,519,325.5,253.5).
+            {"type": "string", "pattern": r"^\s*\+?[0-9.eE+-]+(\s*,\s*[+-]?[0-9.eE+-]+){3}\s*$"},
         ],
     },
     "up": {
@@ -62,6 +64,11 @@ COMMON_OPTIONS = {
         ],
     },
 }  # fmt: skip
+
+
+#: The class list of a layout that has no file for it (what recording.yaml's ``classes`` says).
+CLASSES_OPTION = {"type": "array", "items": {"type": "string", "minLength": 1}, "uniqueItems": True,
+                  "description": "the recording's class list, e.g. [chair, couch, dining table]"}
 
 
 def options_schema(depth_scale: float, up, **extra: dict) -> dict:
@@ -120,7 +127,15 @@ def intrinsics_option(opts: dict) -> tuple[float, float, float, float] | None:
         return None
     if isinstance(value, dict):
         value = [value[k] for k in ("fx", "fy", "cx", "cy")]
-    return tuple(float(v) for v in value)
+    elif isinstance(value, str):
+        try:
+            value = [float(v) for v in value.split(",")]
+        except ValueError:
+            raise ConfigError(f"option 'intrinsics' must be FX,FY,CX,CY numbers, got {value!r}") from None
+    vals = tuple(float(v) for v in value)
+    if not (all(np.isfinite(vals)) and vals[0] > 0 and vals[1] > 0):
+        raise ConfigError(f"option 'intrinsics' needs finite numbers and positive FX, FY, got {value!r}")
+    return vals
 
 
 def make_intrinsics(width, height, fx_fy_cx_cy, override) -> Intrinsics:
@@ -231,6 +246,39 @@ def read_matrix_file(path: Path, what: str) -> np.ndarray:
     if K[0, 0] <= 0 or K[1, 1] <= 0:
         raise RecordingError(f"{what} has non-positive focal lengths", path)
     return K
+
+
+# --------------------------------------------------------------------------------------------------
+# Associating stamps
+
+
+def nearest_index(sorted_stamps: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Index of the nearest of ``sorted_stamps`` (M,) for each of ``t`` (N,)."""
+    i = np.clip(np.searchsorted(sorted_stamps, t), 1, len(sorted_stamps) - 1)
+    left, right = sorted_stamps[i - 1], sorted_stamps[i]
+    return np.where(np.abs(t - left) <= np.abs(right - t), i - 1, i)
+
+
+def associate_nearest(rgb_t: np.ndarray, depth_t: np.ndarray, max_dt: float) -> tuple[list[int], np.ndarray]:
+    """(rgb indices with a depth image within ``max_dt``, sorted; depth index (N,) of every rgb).
+
+    Nearest depth stamp per rgb stamp; each depth image is used once, by the closest rgb stamp
+    (TUM's associate.py rule; the bag reader pairs colour and depth messages the same way).
+    """
+    d_order = np.argsort(depth_t, kind="stable")
+    depth_sorted = depth_t[d_order]
+    if len(depth_sorted) == 1:
+        nearest_d = np.zeros(len(rgb_t), dtype=int)
+    else:
+        nearest_d = nearest_index(depth_sorted, rgb_t)
+    d_idx = d_order[nearest_d]
+    d_diff = np.abs(depth_t[d_idx] - rgb_t)
+    best_for_depth: dict[int, int] = {}
+    for i in np.flatnonzero(d_diff <= max_dt):
+        j = int(d_idx[i])
+        if j not in best_for_depth or d_diff[i] < d_diff[best_for_depth[j]]:
+            best_for_depth[j] = int(i)
+    return sorted(best_for_depth.values()), d_idx
 
 
 # --------------------------------------------------------------------------------------------------

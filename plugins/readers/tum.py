@@ -12,8 +12,8 @@ from scipy.spatial.transform import Rotation, Slerp
 from ltc_cli.errors import RecordingError
 from ltc_cli.types import Recording
 from ltc_plugins.readers.common import (
-    FrameSource, ImageFormat, first_size, frame_refs, identity, intrinsics_option, make_intrinsics,
-    open_folder, options_schema, quaternion_pose, read_bytes, up_option,
+    FrameSource, ImageFormat, associate_nearest, first_size, frame_refs, identity, intrinsics_option,
+    make_intrinsics, open_folder, options_schema, quaternion_pose, read_bytes, up_option,
 )  # fmt: skip
 
 # Calibrated pinhole parameters of the Freiburg sensors (TUM RGB-D "file formats" page) and the ROS
@@ -65,34 +65,6 @@ def _tum_list(path: Path, columns: int, what: str) -> tuple[list[str], list[list
         rest.append(parts[1:])
         lines.append(lineno)
     return stamps, rest, lines
-
-
-def _nearest(sorted_stamps: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Index of the nearest of ``sorted_stamps`` (M,) for each of ``t`` (N,)."""
-    i = np.clip(np.searchsorted(sorted_stamps, t), 1, len(sorted_stamps) - 1)
-    left, right = sorted_stamps[i - 1], sorted_stamps[i]
-    return np.where(np.abs(t - left) <= np.abs(right - t), i - 1, i)
-
-
-def _associate_depth(rgb_t: np.ndarray, depth_t: np.ndarray, max_dt: float) -> tuple[list[int], np.ndarray]:
-    """(rgb indices with a depth image within ``max_dt``, sorted; depth index (N,) of every rgb).
-
-    Nearest depth stamp per rgb stamp; each depth image is used once, by the closest rgb stamp.
-    """
-    d_order = np.argsort(depth_t, kind="stable")
-    depth_sorted = depth_t[d_order]
-    if len(depth_sorted) == 1:
-        nearest_d = np.zeros(len(rgb_t), dtype=int)
-    else:
-        nearest_d = _nearest(depth_sorted, rgb_t)
-    d_idx = d_order[nearest_d]
-    d_diff = np.abs(depth_t[d_idx] - rgb_t)
-    best_for_depth: dict[int, int] = {}
-    for i in np.flatnonzero(d_diff <= max_dt):
-        j = int(d_idx[i])
-        if j not in best_for_depth or d_diff[i] < d_diff[best_for_depth[j]]:
-            best_for_depth[j] = int(i)
-    return sorted(best_for_depth.values()), d_idx
 
 
 def _pose_sources(chosen, rgb_t, gt_t, max_gap: float, max_dt: float) -> dict[int, tuple[int, int, float]]:
@@ -188,7 +160,7 @@ class TumReader:
 
         rgb_t = np.array([float(s) for s in rgb_stamps])
         depth_t = np.array([float(s) for s in depth_stamps])
-        chosen, d_idx = _associate_depth(rgb_t, depth_t, max_dt)
+        chosen, d_idx = associate_nearest(rgb_t, depth_t, max_dt)
         pose_src = _pose_sources(chosen, rgb_t, gt_t, float(opts["max_pose_gap"]), max_dt)
         frames_idx = [i for i in chosen if i in pose_src]
         if not frames_idx:

@@ -29,7 +29,7 @@ class OutputExistsError(LtcError):
 
 
 def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: int = 640,
-             height: int = 480, profile: str = "benign", **options) -> dict:
+             height: int = 480, profile: str = "benign", progress=None, **options) -> dict:
     """Write a synthetic house recording, one ``ltc-recording/1`` folder per lap.
 
     outdir: the folder to write ``lap1``, ``lap2``, ... into (created as needed); a lap folder that
@@ -46,6 +46,7 @@ def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: 
         sizes varying within a class, people walking through); see ``PROFILES``.
     options: see ``DEFAULTS`` (detector noise rates, depth noise, lap changes, path density, the
         realistic failure modes one by one); they override the profile's values.
+    progress: called as ``progress(done, total)`` after each frame written (frames of all laps).
 
     Returns a summary: {"outdir", "scene", "seed", "width", "height", "classes", "frames_per_lap",
     "objects_per_lap", "changes" (per lap), "laps": [{"lap", "path", "frames", "objects",
@@ -106,9 +107,15 @@ def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: 
             "simulator": {**simulator, "lap": lap, "laps": laps, "options": sim_options},
         }
         extras = LapExtras.make(house, poses, phantoms, opts, seed, lap)
+        done = (lap - 1) * len(poses)
+
+        def frame_written(i, done=done):
+            if progress is not None:
+                progress(done + i + 1, laps * len(poses))
+
         try:
             nbytes = write_lap(RecordingWriter(lap_dir, meta), house, poses, renderer, opts, min_pixels,
-                               classes, seed, lap, changes, extras)
+                               classes, seed, lap, changes, extras, frame_written)
         except OSError as exc:
             raise LtcError(f"cannot write: {exc.strerror or exc}", path=exc.filename or lap_dir) from exc
         summary["objects_per_lap"].append(len(house.objects))
@@ -120,7 +127,7 @@ def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: 
 
 
 def write_lap(writer: RecordingWriter, house: House, poses, renderer: Renderer, opts, min_pixels, classes,
-              seed, lap, changes, extras: LapExtras) -> int:
+              seed, lap, changes, extras: LapExtras, frame_written=None) -> int:
     """Render, detect and write every frame of one lap, then its ground truth; returns its bytes.
     The images are rendered from the true poses; poses.txt gets the localiser's (extras)."""
     centers, yaws, sizes, colors, owners = extras.static_primitives(house)
@@ -156,6 +163,8 @@ def write_lap(writer: RecordingWriter, house: House, poses, renderer: Renderer, 
         } for cls, score, scores, mask in dets]
         writer.write_frame(fid, extras.written_poses[i], rgb, depth_mm, annotations=annotations,
                            instances=instances, detector="ltc-simulate")
+        if frame_written is not None:
+            frame_written(i)
 
     objects = []
     for oid, o in house.objects.items():

@@ -1,0 +1,60 @@
+"""How right ``ltc changes`` is on simulated two-lap houses: precision and recall of the change
+report against the simulator's list of moved, removed and added objects, by change and by place
+(ltc_cli/tools/evaluate_changes.py), summed over the houses, for a few move radii.
+
+    python benchmarks/bench_changes.py [--houses 4] [--scene small] [--radius 1 2 4 8]
+
+Houses are simulated with seeds 1.. (not the sample data's) and cached in benchmarks/.cache, shared
+with bench_accuracy.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks.bench_accuracy import house  # noqa: E402
+from ltc_cli.config import load_config  # noqa: E402
+from ltc_cli.ingest.session import ingest  # noqa: E402
+from ltc_cli.map.changes import map_changes  # noqa: E402
+from ltc_cli.map.store import load_map  # noqa: E402
+from ltc_cli.recordings.groundtruth import read_ground_truth  # noqa: E402
+from ltc_cli.tools.evaluate_changes import evaluate_changes  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--houses", type=int, default=4)
+    ap.add_argument("--scene", default="small")
+    ap.add_argument("--radius", type=float, nargs="+", default=[1.0, 2.0, 4.0, 8.0])
+    args = ap.parse_args()
+    totals = {r: {"by_change": [0, 0, 0], "by_place": [0, 0, 0]} for r in args.radius}
+    for seed in range(1, args.houses + 1):
+        root = house(args.scene, seed)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "m.h5"
+            for lap in ("lap1", "lap2"):
+                ingest([root / lap], path, load_config(None, []))
+            smap = load_map(path)
+        before, after = read_ground_truth(root / "lap1"), read_ground_truth(root / "lap2")
+        for r in args.radius:
+            res = evaluate_changes(map_changes(smap, move_radius=r), before, after)
+            for k in ("by_change", "by_place"):
+                for i, f in enumerate(("right", "reported", "true")):
+                    totals[r][k][i] += res[k][f]
+        print(f"house {args.scene} seed {seed}: {res['truth']} true changes, {res['reported']} reported (radius {r:g} m)")
+    print(f"{'radius':>6}  {'by change: P':>12} {'R':>6}  {'by place: P':>11} {'R':>6}")
+    for r, t in totals.items():
+        (cr, crep, ctrue), (pr, prep, ptrue) = t["by_change"], t["by_place"]
+        print(f"{r:>6g}  {cr / max(crep, 1):>12.2f} {cr / max(ctrue, 1):>6.2f}  {pr / max(prep, 1):>11.2f} {pr / max(ptrue, 1):>6.2f}"
+              f"   ({cr}/{crep}, {cr}/{ctrue}; {pr}/{prep}, {pr}/{ptrue})")
+
+
+if __name__ == "__main__":
+    main()

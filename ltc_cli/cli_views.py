@@ -1,0 +1,178 @@
+"""The ``ltc`` commands that show a map: ``export`` (JSON, GeoJSON, Rerun), ``render`` (top-down
+picture), ``changes`` (what changed between visits) and ``view`` (3D, in the Rerun viewer).
+
+Part of the command line (with :mod:`ltc_cli.cli`, whose group they join): the only other code that
+prints. Library errors reach the user as one line through the group's handler.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+import click
+
+from ltc_cli.cli import cli
+from ltc_cli.text import plural
+
+
+@cli.command("export")
+@click.argument("map_path", type=click.Path())
+@click.option("--format", "fmt", type=click.Choice(["json", "geojson", "rrd"]), required=True,
+              help="json: everything about every object; geojson: footprints (local metres unless --origin); "
+                   "rrd: a Rerun recording of the boxes in 3D (needs ltc[viz]; -o required).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here (atomically) instead of stdout.")
+@click.option("--origin", metavar="LAT,LON[,HEADING_DEG]",
+              help="GeoJSON in WGS84 longitude/latitude: the map origin's latitude and longitude (degrees) and the "
+                   "bearing of the map's +y axis (degrees clockwise from true north; default 0).")
+def export_cmd(map_path, fmt, output, origin):
+    """Export the active objects of MAP.h5 as JSON, GeoJSON (RFC 7946) or a Rerun .rrd file."""
+    from ltc_cli.map import export as ex
+    from ltc_cli.map.store import load_map
+
+    if fmt == "rrd":
+        from ltc_cli.map.rrd import require_rerun, write_rrd
+
+        if not output or origin is not None:
+            raise click.UsageError("--format rrd writes a file: give -o FILE.rrd (and no --origin)")
+        require_rerun()  # before reading the map: the missing extra is the first thing to hear
+        done = write_rrd(output, load_map(map_path))
+        click.echo(f"{map_path}: {plural(done['objects'], 'object')} exported as rrd to {output} "
+                   f"(open it with: rerun {output})", err=True)
+        return
+
+    geo_origin = None
+    if origin is not None:
+        if fmt != "geojson":
+            raise click.UsageError("--origin applies to --format geojson only")
+        try:
+            geo_origin = ex.parse_origin(origin)
+        except ex.ExportError as exc:
+            raise click.BadParameter(exc.message, param_hint="--origin") from None
+    smap = load_map(map_path)
+    doc = ex.export_json(smap, map_path) if fmt == "json" else ex.export_geojson(smap, geo_origin, map_path)
+    text = ex.dumps(doc)
+    if output:
+        ex.write_atomic(output, text)
+    else:
+        click.echo(text, nl=False)
+    n = len(doc["objects"] if fmt == "json" else doc["features"])
+    crs = "" if fmt == "json" else (" (WGS84 lon/lat)" if geo_origin else
+                                     " (local metres, not lon/lat: give --origin LAT,LON for GIS tools)")
+    click.echo(f"{map_path}: {plural(n, 'object')} exported as {fmt}{crs} to {output or 'stdout'}", err=True)
+
+
+@cli.command("render")
+@click.argument("map_path", type=click.Path())
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The PNG to write.")
+@click.option("--ground-truth", "ground_truth", type=click.Path(), metavar="FILE|RECORDING",
+              help="ground_truth.json, or a recording folder holding one: drawn beneath as dashed outlines.")
+@click.option("--width", default=1200, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
+@click.option("--height", default=900, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
+@click.option("--labels/--no-labels", default=None, help="Label objects 'class #id' (default: when at most 300).")
+@click.option("--changes", "show_changes", is_flag=True,
+              help="Mark what the latest visit changed (as `ltc changes`): added green, removed red, moved orange.")
+@click.option("--since", type=click.IntRange(min=-1), metavar="SESSION", help="With --changes: changes after this session.")
+def render_cmd(map_path, output, ground_truth, width, height, labels, show_changes, since):
+    """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a picture (PNG, or
+    JPEG, WebP, TIFF, BMP by the output's suffix)."""
+    from pathlib import Path
+
+    from ltc_cli.map.changes import map_changes
+    from ltc_cli.map.render import load_ground_truth, render_map
+    from ltc_cli.map.store import load_map
+
+    if since is not None and not show_changes:
+        raise click.UsageError("--since goes with --changes")
+    smap = load_map(map_path)
+    gt = load_ground_truth(ground_truth) if ground_truth else None
+    changes = map_changes(smap, since, map_path=map_path).changes if show_changes else None
+    res = render_map(smap, output, ground_truth=gt, width=width, height=height, labels=labels,
+                     map_name=Path(map_path).name, changes=changes)
+    extra = f", {res.ground_truth} ground-truth boxes" if gt is not None else ""
+    if res.changes is not None:
+        extra += ", changes: " + ", ".join(f"{n} {k}" for k, n in res.changes.items())
+    fmt = "" if res.format == "PNG" else f" {res.format}"
+    click.echo(f"{output}: {res.width}x{res.height} px{fmt}, {plural(res.objects, 'object')}{extra}")
+
+
+@cli.command("changes")
+@click.argument("map_path", type=click.Path())
+@click.option("--since", type=click.IntRange(min=-1), metavar="SESSION",
+              help="Compare with the map at the end of this session (0-based, as `ltc info` numbers them; "
+                   "-1: an empty map). Default: the session before the last, i.e. what the latest visit changed.")
+@click.option("--move-radius", type=click.FloatRange(min=0), default=None, metavar="M",
+              help="Largest distance (m) between a removal and an addition of one class that is reported as a move "
+                   "[default: 6].")
+@click.option("--format", "fmt", type=click.Choice(["table", "json", "csv"]), default="table", show_default=True)
+def changes_cmd(map_path, since, move_radius, fmt):
+    """List the objects added, removed and moved since a session (from the map's event log)."""
+    from ltc_cli.map import changes as ch
+    from ltc_cli.map.store import load_map
+
+    smap = load_map(map_path)
+    radius = ch.MOVE_RADIUS if move_radius is None else move_radius
+    report = ch.map_changes(smap, since, move_radius=radius, map_path=map_path)
+    if fmt == "json":
+        doc = {"map": str(map_path), "since": report.since, "sessions": report.sessions,
+               "move_radius": radius, "replaced": report.replaced,
+               "changes": [c.as_dict() for c in report.changes]}
+        click.echo(json.dumps(doc, indent=2))
+    elif fmt == "csv":
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(ch.COLUMNS)
+        w.writerows(ch.flat_rows(report))
+        click.echo(buf.getvalue(), nl=False)
+    elif report.changes:
+        click.echo("\n".join(ch.table_lines(report)))
+    later = report.sessions - 1 - report.since
+    counts = ", ".join(f"{report.count(k)} {k}" for k in ch.KINDS)
+    kept = f"; {plural(report.replaced, 'object')} re-identified in place" if report.replaced else ""
+    click.echo(f"{map_path}: since session {report.since} ({plural(max(later, 0), 'later session')}): "
+               f"{counts}{kept}", err=True)
+
+
+@cli.command("view")
+@click.argument("map_path", type=click.Path())
+@click.argument("recording", required=False, type=click.Path())
+@click.option("--format", "reader", help="Recording reader (default: detected).")
+@click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help="A reader option (as for ingest).")
+@click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Log every N-th frame of RECORDING.")
+@click.option("--no-images", is_flag=True, help="Log the camera path only, not the images.")
+@click.option("--save", type=click.Path(dir_okay=False), metavar="FILE.rrd",
+              help="Write the .rrd file instead of opening the viewer (e.g. on a machine without a display).")
+def view_cmd(map_path, recording, reader, reader_opts, every, no_images, save):
+    """Show MAP.h5 in 3D in the Rerun viewer: the boxes with class and id, and with RECORDING the
+    camera path and its images on a timeline (needs ltc[viz])."""
+    import os
+    import sys
+
+    from ltc_cli.cli import reader_options
+    from ltc_cli.map import rrd
+    from ltc_cli.map.store import load_map
+    from ltc_cli.recordings.open import open_recording
+
+    rrd.require_rerun()
+    smap = load_map(map_path)
+    rec = open_recording(recording, reader, reader_options(reader_opts)) if recording else None
+    T = rrd.recording_to_map(smap, rec) if rec is not None else None
+
+    def warn(message):
+        click.echo(f"warning: {message}", err=True)
+
+    if save:
+        done = rrd.write_rrd(save, smap, rec, T, every, not no_images, warn)
+        click.echo(f"{save}: {plural(done['objects'], 'object')}, {plural(done['frames'], 'frame')} "
+                   f"(open it with: rerun {save})")
+        return
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise click.ClickException("no display to open the viewer on: write the file with --save map.rrd "
+                                   "and open it where there is one (rerun map.rrd)")
+    stream = rrd.new_stream(os.path.basename(map_path))
+    stream.spawn()
+    n_obj = rrd.log_map(stream, smap)
+    n_frames = rrd.log_recording(stream, rec, T, every, not no_images, warn) if rec is not None else 0
+    stream.flush()
+    click.echo(f"{map_path}: {plural(n_obj, 'object')}, {plural(n_frames, 'frame')} sent to the Rerun viewer")

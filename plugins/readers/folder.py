@@ -1,0 +1,217 @@
+"""Plain-folder reader: colour and depth images and a pose file, with the camera given as reader
+options (``ltc ingest FOLDER -r intrinsics=FX,FY,CX,CY``), so data as a robot or a SLAM system left
+it maps with one command and without writing a recording.yaml into it (the folder may be read-only).
+
+Layout (every name can be changed with an option):
+
+```
+color/<stem>.png|jpg     (or colour/, rgb/, image/, images/)
+depth/<stem>.png|pgm|tif 16-bit, metres = value / depth_scale (default 1000: millimetres); 0 = none
+pose.txt                 (or poses.txt, trajectory.txt): T_world_camera, OpenCV camera axes, one line
+                         per frame, any of
+                           tx ty tz qx qy qz qw          line N = the N-th colour image (natural order)
+                           stem tx ty tz qx qy qz qw     the frame named by its first field
+                           12 or 16 numbers              a 3x4 (KITTI) or 4x4 matrix, row-major, by order
+```
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ltc_cli import hookimpl
+from ltc_cli.errors import FrameError, RecordingError
+from ltc_cli.types import Recording
+from ltc_plugins.readers.common import (
+    CLASSES_OPTION, FrameSource, ImageFormat, checked_matrix_pose, first_existing, first_size, frame_refs, identity,
+    intrinsics_option, make_intrinsics, open_folder, options_schema, quaternion_pose, read_bytes,
+    up_option,
+)  # fmt: skip
+
+COLOR_DIRS = ("color", "colour", "rgb", "image", "images")
+POSE_FILES = ("pose.txt", "poses.txt", "trajectory.txt")
+COLOR_EXT = (".png", ".jpg", ".jpeg")
+DEPTH_EXT = (".png", ".pgm", ".tif", ".tiff")
+
+_NAME = {"type": "string", "minLength": 1}
+OPTIONS_SCHEMA = options_schema(
+    1000.0,
+    "estimate",
+    color={**_NAME, "description": f"colour image folder (default: the first of {', '.join(COLOR_DIRS)})"},
+    depth={**_NAME, "default": "depth", "description": "depth image folder"},
+    poses={**_NAME, "description": f"pose file (default: the first of {', '.join(POSE_FILES)})"},
+    classes=CLASSES_OPTION,
+)  # fmt: skip
+
+_NUMBER_RUN = re.compile(r"(\d+)")
+
+
+def natural_key(stem: str) -> tuple:
+    """Sort key that orders "2" before "10" and "frame-2" before "frame-10"."""
+    return tuple(int(p) if p.isdigit() else p for p in _NUMBER_RUN.split(stem))
+
+
+def _images(folder: Path, extensions: tuple[str, ...]) -> dict[str, Path]:
+    """{stem: path} of the images in a folder (of two with one stem, the earlier extension wins)."""
+    try:
+        paths = [p for p in folder.iterdir() if p.suffix.lower() in extensions and p.is_file()]
+    except OSError:
+        return {}
+    paths.sort(key=lambda p: (p.stem, extensions.index(p.suffix.lower())))
+    found: dict[str, Path] = {}
+    for p in paths:
+        found.setdefault(p.stem, p)
+    return found
+
+
+def _color_dir(folder: Path, name: str | None) -> Path | None:
+    if name is not None:
+        return folder / name
+    return next((folder / d for d in COLOR_DIRS if (folder / d).is_dir()), None)
+
+
+def _pose_file(folder: Path, name: str | None) -> Path | None:
+    if name is not None:
+        return folder / name
+    return next((folder / f for f in POSE_FILES if (folder / f).is_file()), None)
+
+
+def _same_stem(a: str, b: str) -> bool:
+    """"1" names frame "000001" too (pose files often drop the images' zero padding)."""
+    return a == b or (a.isdigit() and b.isdigit() and int(a) == int(b))
+
+
+def read_pose_lines(path: Path, stems: list[str]) -> dict[str, tuple[str, list[str]]]:
+    """{stem: (where, fields)} from a pose file (see the module docstring for the line forms)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RecordingError(f"cannot read the pose file ({exc})", path) from None
+    rows = [(n, line.replace(",", " ").split()) for n, line in enumerate(text.splitlines(), 1)
+            if line.strip() and not line.lstrip().startswith("#")]
+    counts = {len(fields) for _, fields in rows}
+    if not rows:
+        raise RecordingError("the pose file has no poses", path)
+    if len(counts) != 1 or counts - {7, 8, 12, 16}:
+        raise RecordingError(
+            f"pose lines must all have 7 (tx ty tz qx qy qz qw), 8 (frame and those 7), 12 (3x4) or 16 (4x4) "
+            f"fields; found {sorted(counts)}", path)
+    if counts == {8}:
+        out = {}
+        for n, fields in rows:
+            stem = next((s for s in stems if _same_stem(fields[0], s)), None)
+            if stem is None:
+                raise RecordingError(f"line {n}: no colour image is named {fields[0]!r}", path)
+            out[stem] = (f"line {n}", fields[1:])
+        return out
+    if len(rows) != len(stems):
+        raise RecordingError(
+            f"{len(rows)} pose lines for {len(stems)} colour images: without frame names line N is the N-th "
+            "image, so the counts must agree (or put each frame's name first on its line)", path)
+    return {stem: (f"line {n}", fields) for stem, (n, fields) in zip(stems, rows)}
+
+
+def pose_of(path: Path, where: str, fields: list[str]):
+    """pose(): T_world_camera (4, 4) of one pose line, checked when the frame loads."""
+    def pose() -> np.ndarray:
+        try:
+            vals = np.array([float(f) for f in fields])
+        except ValueError:
+            raise FrameError(f"{where}: not a number in {' '.join(fields)!r}", path) from None
+        if vals.size == 7:
+            return quaternion_pose(vals, path, where)
+        T = np.vstack([vals.reshape(-1, 4), [0.0, 0.0, 0.0, 1.0]]) if vals.size == 12 else vals.reshape(4, 4)
+        return checked_matrix_pose(T, path)
+
+    return pose
+
+
+class FolderReader:
+    """A plain folder of colour and depth images and a pose file; the camera comes from the
+    reader option ``intrinsics`` (required), the depth unit from ``depth_scale`` (default 1000).
+
+    The world's up is estimated by default (SLAM systems usually start their world at the first
+    camera, which is not z-up); give ``up`` (e.g. ``z`` or ``-y``) when it is known.
+    """
+
+    name = "folder"
+    OPTIONS_SCHEMA = OPTIONS_SCHEMA
+
+    def sniff(self, path) -> bool:
+        try:
+            p = Path(path)
+            # Folders with their own layout file belong to their own readers.
+            if not p.is_dir() or any((p / f).exists() for f in ("recording.yaml", "rgb.txt", "intrinsic")):
+                return False
+            return (_color_dir(p, None) is not None and (p / "depth").is_dir()
+                    and _pose_file(p, None) is not None)
+        except OSError:
+            return False
+
+    def open(self, path, options: dict | None = None) -> Recording:
+        folder, opts = open_folder(path, options, OPTIONS_SCHEMA, self.name)
+        camera = intrinsics_option(opts)
+        if camera is None:
+            raise RecordingError(
+                "a plain folder of images needs the camera: give the reader option intrinsics "
+                "(ltc ingest ... -r intrinsics=FX,FY,CX,CY, in pixels)", folder)
+        color_dir = _color_dir(folder, opts.get("color"))
+        if color_dir is None or not color_dir.is_dir():
+            tried = opts.get("color") or "/, ".join(COLOR_DIRS)
+            raise RecordingError(f"no colour image folder ({tried}/); name it with the reader option color", folder)
+        depth_dir = folder / opts["depth"]
+        if not depth_dir.is_dir():
+            raise RecordingError("no depth image folder; name it with the reader option depth", depth_dir)
+        pose_path = _pose_file(folder, opts.get("poses"))
+        if pose_path is None or not pose_path.is_file():
+            tried = opts.get("poses") or ", ".join(POSE_FILES)
+            raise RecordingError(f"no pose file ({tried}); name it with the reader option poses", folder)
+
+        colors = _images(color_dir, COLOR_EXT)
+        depths = _images(depth_dir, DEPTH_EXT)
+        stems = sorted(colors, key=natural_key)
+        if not stems:
+            raise RecordingError(f"no colour images ({', '.join(COLOR_EXT)})", color_dir)
+        poses = read_pose_lines(pose_path, stems)
+        depth_scale = float(opts["depth_scale"])
+        width, height = first_size((depths[s] for s in stems if s in depths), folder)
+        intr = make_intrinsics(width, height, camera, None)
+
+        def missing_pose(stem: str):
+            def pose():
+                raise FrameError(f"frame {stem!r} has no pose line", pose_path)
+            return pose
+
+        sources = [
+            FrameSource(
+                key=stem,
+                rgb_path=colors[stem],
+                # A colour image without depth is listed, so its load() names the missing file.
+                depth_path=depths.get(stem) or first_existing(*(depth_dir / f"{stem}{e}" for e in DEPTH_EXT)),
+                pose=pose_of(pose_path, *poses[stem]) if stem in poses else missing_pose(stem),
+            )
+            for stem in stems
+        ]
+        # The pose file, the image names and the camera: the same folder read with another camera
+        # is another recording.
+        listing = "\n".join(f"{colors[s].name} {depths[s].name if s in depths else '-'}" for s in stems)
+        camera_text = f"{camera} {depth_scale}"
+        return Recording(
+            path=str(folder),
+            format="folder",
+            identity=identity([(pose_path.name, read_bytes(pose_path)), ("images", listing.encode()),
+                               ("camera", camera_text.encode())]),
+            intrinsics=intr,
+            frames=frame_refs(sources, ImageFormat(intr, depth_scale)),
+            up=up_option(opts, self.name), classes=opts.get("classes"),
+            meta={"reader": self.name, "depth_scale": depth_scale, "color": color_dir.name,
+                  "depth": depth_dir.name, "poses": pose_path.name},
+        )
+
+
+@hookimpl
+def register_readers(register):
+    register(FolderReader.name, FolderReader())

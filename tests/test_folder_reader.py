@@ -1,0 +1,149 @@
+"""The plain-folder reader (plugins/readers/folder.py): colour and depth images and a pose file, the
+camera given on the command line. The real dining-room folder of ../shared maps with one command and
+gives the same map as the hand-written ltc-recording/1 route of test_dining_room.py; a simulated lap
+laid out as a plain folder gives the same objects as the lap itself."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from ltc_cli.cli import cli
+from ltc_cli.errors import ConfigError, FrameError, RecordingError
+from ltc_cli.geometry.camera import pose_matrix
+from ltc_cli.map.model import ACTIVE
+from ltc_cli.map.store import load_map
+from ltc_cli.recordings.open import open_recording
+from ltc_plugins.readers.folder import FolderReader
+from tests.shared_data import SHARED
+
+ROOT = Path(__file__).resolve().parents[1]
+LAP1 = ROOT / "sample_data" / "lap1"
+DINING = SHARED / "data" / "dining-room"
+MODEL = SHARED / "models" / "yolov8n-seg_int8.onnx"
+W, H = 8, 6
+
+
+def write_folder(root: Path, stems, pose_lines, depth_ext=".pgm") -> Path:
+    for i, stem in enumerate(stems):
+        (root / "color").mkdir(parents=True, exist_ok=True)
+        (root / "depth").mkdir(exist_ok=True)
+        Image.fromarray(np.full((H, W, 3), 10 * i, np.uint8)).save(root / "color" / f"{stem}.png")
+        Image.fromarray(np.full((H, W), 1000 + i, np.uint16)).save(root / "depth" / f"{stem}{depth_ext}")
+    (root / "pose.txt").write_text("".join(line + "\n" for line in pose_lines))
+    return root
+
+
+def test_plain_folder_frames_poses_depth_and_camera(tmp_path):
+    # Natural order: "2" before "10". Line N is the N-th image.
+    poses = ["1 2 3 0 0 0 1", "0 0 0 0 0 0.7071067811865476 0.7071067811865476", "-1 0 0.5 1 0 0 0"]
+    root = write_folder(tmp_path / "rec", ["10", "2", "1"], poses)
+    assert FolderReader().sniff(root)
+    rec = open_recording(root, None, {"intrinsics": "5,6,3.5,2.5"})  # chosen by sniffing
+    assert rec.format == "folder" and [f.key for f in rec.frames] == ["1", "2", "10"]
+    assert (rec.intrinsics.fx, rec.intrinsics.fy, rec.intrinsics.cx, rec.intrinsics.cy) == (5, 6, 3.5, 2.5)
+    assert (rec.intrinsics.width, rec.intrinsics.height) == (W, H)
+    assert rec.up == "estimate"  # the default: SLAM worlds start at the first camera
+    f = rec.frames[1].load()  # frame "2", the second line: a quarter turn about z
+    assert f.depth_m[0, 0] == pytest.approx(1.001)  # millimetres by default (value 1000 + 1)
+    np.testing.assert_allclose(f.T_world_camera, [[0, -1, 0, 0], [1, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], atol=1e-12)
+    np.testing.assert_allclose(rec.frames[2].load().T_world_camera[:3, 3], [-1, 0, 0.5])
+    # Another depth unit and a known up.
+    rec2 = FolderReader().open(root, {"intrinsics": [5, 6, 3.5, 2.5], "depth_scale": 5000, "up": "z"})
+    assert rec2.frames[0].load().depth_m[0, 0] == pytest.approx(1002 / 5000) and rec2.up is None  # "1": 1000 + 2
+    assert rec2.identity != rec.identity  # another camera is another recording
+
+
+def test_named_pose_lines_and_matrices(tmp_path):
+    T = pose_matrix([1.0, 2.0, 3.0], [0.0, 0.0, 0.0, 1.0])
+    root = write_folder(tmp_path / "a", ["000001", "000002"], ["2 0 0 0 0 0 0 1", "1 1 2 3 0 0 0 1"])
+    rec = FolderReader().open(root, {"intrinsics": "5,6,3,2"})
+    np.testing.assert_allclose(rec.frames[0].load().T_world_camera, T)  # "1" names 000001
+    np.testing.assert_allclose(rec.frames[1].load().T_world_camera[:3, 3], [0, 0, 0])
+    kitti = " ".join(str(v) for v in T[:3].ravel())
+    root = write_folder(tmp_path / "b", ["a"], [kitti], depth_ext=".png")
+    np.testing.assert_allclose(FolderReader().open(root, {"intrinsics": "5,6,3,2"}).frames[0].load().T_world_camera, T)
+
+
+def test_plain_folder_errors(tmp_path):
+    root = write_folder(tmp_path / "rec", ["1", "2"], ["0 0 0 0 0 0 1"])
+    with pytest.raises(RecordingError, match="intrinsics=FX,FY,CX,CY"):
+        FolderReader().open(root, {})
+    with pytest.raises(RecordingError, match="1 pose lines for 2 colour images"):
+        FolderReader().open(root, {"intrinsics": "5,6,3,2"})
+    with pytest.raises(ConfigError, match="intrinsics"):
+        FolderReader().open(root, {"intrinsics": "5,6,3"})
+    (root / "pose.txt").write_text("1 0 0 0 0 0 0 1\n3 0 0 0 0 0 0 1\n")
+    with pytest.raises(RecordingError, match="line 2: no colour image is named '3'"):
+        FolderReader().open(root, {"intrinsics": "5,6,3,2"})
+    (root / "pose.txt").write_text("1 0 0 0 0 0 0 1\n")
+    rec = FolderReader().open(root, {"intrinsics": "5,6,3,2"})
+    with pytest.raises(FrameError, match="frame '2' has no pose line"):
+        rec.frames[1].load()
+    (root / "recording.yaml").write_text("format: ltc-recording/1\n")
+    assert not FolderReader().sniff(root)  # a folder with its own layout file is not a plain one
+
+
+def objects_of(map_path):
+    smap = load_map(map_path)
+    t = smap.objects
+    rows = np.flatnonzero(t.status == ACTIVE)
+    return [(smap.classes[int(t.scores[r, :-1].argmax())], t.center[r], t.size[r], t.yaw[r]) for r in rows]
+
+
+def assert_same_objects(a, b, tol=1e-3):
+    assert len(a) == len(b) and len(a) > 0
+    for (ca, pa, sa, ya), (cb, pb, sb, yb) in zip(a, b):
+        assert ca == cb
+        np.testing.assert_allclose(pa, pb, atol=tol)
+        np.testing.assert_allclose(sa, sb, atol=tol)
+        assert abs(ya - yb) < 1e-3
+
+
+def test_simulated_lap_as_a_plain_folder_maps_like_the_lap(tmp_path):
+    root = tmp_path / "plain"
+    root.mkdir()
+    (root / "color").symlink_to(LAP1 / "rgb")
+    (root / "depth").symlink_to(LAP1 / "depth")
+    # pose.txt without frame ids, as many tools write it.
+    lines = [ln.split(None, 1)[1] for ln in (LAP1 / "poses.txt").read_text().splitlines() if ln.strip()]
+    (root / "pose.txt").write_text("\n".join(lines) + "\n")
+    import yaml
+    meta = yaml.safe_load((LAP1 / "recording.yaml").read_text())
+    cam = meta["camera"]
+    classes = "[" + ", ".join(meta["classes"]) + "]"
+    runner = CliRunner()
+    r = runner.invoke(cli, ["ingest", str(LAP1), "--map", str(tmp_path / "lap.h5")])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(cli, ["ingest", str(root), "--map", str(tmp_path / "plain.h5"),
+                            "-r", f"intrinsics={cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}", "-r", "up=z",
+                            "--set", f"detector.options.folder={LAP1 / 'detections'}", "-r", f"classes={classes}"])
+    assert r.exit_code == 0, r.output
+    assert_same_objects(objects_of(tmp_path / "plain.h5"), objects_of(tmp_path / "lap.h5"), tol=1e-9)
+
+
+@pytest.mark.skipif(not (DINING.is_dir() and MODEL.is_file()), reason="../shared data or model absent")
+def test_dining_room_maps_with_one_command(tmp_path, monkeypatch):
+    """The folder as it is in ../shared (color/N.png, depth/N.pgm, pose.txt without frame ids, the
+    camera only in its README): one command, no file written by hand, the same map as the
+    ltc-recording/1 route of test_dining_room.py."""
+    import tests.test_dining_room as hand_written
+
+    monkeypatch.setattr(hand_written, "DATA", DINING)  # found through tests/shared_data.py
+    model = f"detector.options.model={MODEL}"
+    runner = CliRunner()
+    r = runner.invoke(cli, ["ingest", str(DINING), "--map", str(tmp_path / "one.h5"), "--detector", "onnx-yolo-seg",
+                            "--set", model, "-r", "intrinsics=518.0,519.0,325.5,253.5"])
+    assert r.exit_code == 0, r.output
+    assert "5 frames ingested, 0 skipped" in r.output
+    rec = hand_written.make_recording(tmp_path / "rec")
+    r = runner.invoke(cli, ["ingest", str(rec), "--map", str(tmp_path / "yaml.h5"), "--detector", "onnx-yolo-seg",
+                            "--set", model])
+    assert r.exit_code == 0, r.output
+    one = objects_of(tmp_path / "one.h5")
+    assert_same_objects(one, objects_of(tmp_path / "yaml.h5"))
+    assert sum(c == "couch" for c, *_ in one) == 1 and sum(c == "dining table" for c, *_ in one) == 1
