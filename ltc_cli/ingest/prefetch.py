@@ -36,17 +36,26 @@ class Prefetch:
     for refs asked in recording order; frames whose key is in ``done`` when they come into the
     look-ahead window are never loaded. Everything is submitted from the calling thread, so ``done``
     (the map's frame keys) is only read there.
+
+    ``pool`` and ``task`` replace the thread pool and ``load_and_detect``: any
+    ``concurrent.futures.Executor`` (a Dask client's ``get_executor()``) and a callable
+    ``task(position, key)`` it can run (remote.FrameTask). The pool then belongs to the caller:
+    ``close`` cancels what is pending and leaves the pool open.
     """
 
-    def __init__(self, refs, keys, done, det, jobs: int, lookahead: int | None = None):
+    def __init__(self, refs, keys, done, det, jobs: int, lookahead: int | None = None, pool=None, task=None):
         self.refs = list(refs)
         self.keys = list(keys)
         self.done = done
         self.position = {id(r): i for i, r in enumerate(self.refs)}
-        lock = None if getattr(det, "thread_safe", False) else threading.Lock()
-        self.fetch = load_and_detect(det, lock)
+        if task is None:
+            lock = None if getattr(det, "thread_safe", False) else threading.Lock()
+            fetch = load_and_detect(det, lock)
+            task = lambda j, key: fetch(self.refs[j])  # noqa: E731
+        self.task = task
         self.lookahead = max(1, lookahead or 2 * jobs)
-        self.pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="ltc-detect")
+        self.own_pool = pool is None
+        self.pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="ltc-detect") if pool is None else pool
         self.pending: dict = {}  # position -> Future
         self.next = 0  # the next position to consider for submission
 
@@ -58,10 +67,10 @@ class Prefetch:
             j = self.next
             self.next += 1
             if self.keys[j] not in self.done:
-                self.pending[j] = self.pool.submit(self.fetch, self.refs[j])
+                self.pending[j] = self.pool.submit(self.task, j, self.refs[j].key)
         fut = self.pending.pop(i, None)
-        if fut is None:  # not submitted (its key was already in the map then): do it here
-            return self.fetch(ref)
+        if fut is None:  # not submitted (its key was already in the map then): do it now
+            fut = self.pool.submit(self.task, i, ref.key)
         return fut.result()
 
     def close(self) -> None:
@@ -69,4 +78,5 @@ class Prefetch:
         for fut in self.pending.values():
             fut.cancel()
         self.pending.clear()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        if self.own_pool:
+            self.pool.shutdown(wait=True, cancel_futures=True)

@@ -1,0 +1,115 @@
+"""Dask distributed for ``ltc ingest --dask`` and ``ltc ingest-many --dask`` (the extra ``ltc[dask]``).
+
+Stage 1 (loading, detection, object modeling) of each frame runs on the workers as a
+:class:`remote.FrameTask`; the process that holds the map's lock takes the results in frame order
+through the ordinary look-ahead (:class:`Prefetch` over the client's ``concurrent.futures``
+executor) and applies stages 2-4 itself. So the map is the one a single process makes:
+
+- each frame's result is taken once, at its turn; a task that ran twice (its worker died after
+  starting it, and the scheduler gave it to another) is pure, and only one result reaches the
+  writer;
+- a worker that dies takes its running tasks with it and the scheduler runs them elsewhere
+  (``distributed.scheduler.allowed-failures`` times, 3 by default; then the frame's error stops the
+  ingest, with the frames before it committed);
+- a bad frame comes back as a value and is skipped (or stops ``--strict``) at its turn, as locally.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ltc_cli.errors import LtcError
+from ltc_cli.ingest.prefetch import Prefetch
+from ltc_cli.ingest.remote import FrameTask, RecordingJob, unpack
+
+MISSING = "--dask needs the optional extra ltc[dask]: pip install 'ltc[dask]'"
+
+
+class DaskError(LtcError):
+    """Dask is not installed, the scheduler cannot be reached, or the cluster failed a frame."""
+
+
+def _distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise DaskError(MISSING) from None
+    return distributed
+
+
+class RemoteAhead(Prefetch):
+    """The look-ahead of one recording on a Dask cluster; ``take`` returns what
+    ``load_and_detect`` does, with the frame's stage 1 in place of its detections."""
+
+    def __init__(self, refs, keys, done, job: RecordingJob, pool, lookahead: int):
+        super().__init__(refs, keys, done, None, 1, lookahead, pool=pool, task=FrameTask(job))
+        self.job = job
+
+    def take(self, ref):
+        try:
+            result = super().take(ref)
+        except LtcError:
+            raise
+        except Exception as exc:  # e.g. KilledWorker after too many deaths, a lost scheduler
+            raise DaskError(f"the Dask cluster failed frame {ref.key} ({type(exc).__name__}: {exc})",
+                            self.job.path) from exc
+        return unpack(result, self.job, ref.index)
+
+
+class Cluster:
+    """A Dask client (and the LocalCluster behind it, for ``local``), as ingest uses it."""
+
+    def __init__(self, client, local=None, lookahead_per_thread: int = 2):
+        self.client = client
+        self.local = local
+        self.lookahead_per_thread = lookahead_per_thread
+        self.executor = client.get_executor(pure=False)
+
+    def threads(self) -> int:
+        """Worker threads in the cluster now (at least 1)."""
+        return max(1, sum(self.client.nthreads().values()))
+
+    def ahead(self, setup, plan, classes: list[str], keys: list[str], done) -> RemoteAhead:
+        """The look-ahead of one recording (``setup``: a session.RecordingSetup) for a map whose
+        class list is ``classes``: twice as many frames in flight as the cluster has threads."""
+        rec = setup.recording
+        job = RecordingJob(str(rec.path), plan.reader, plan.reader_options, rec.identity, plan.settings,
+                           tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range))
+        return RemoteAhead(rec.frames, keys, done, job, self.executor, self.lookahead_per_thread * self.threads())
+
+    def close(self) -> None:
+        self.client.close()
+        if self.local is not None:
+            self.local.close()
+
+    def __enter__(self) -> "Cluster":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def parse_spec(spec: str):
+    """``local`` -> ("local", one worker per core); ``local:N`` -> ("local", N); else ("address", spec)."""
+    if spec == "local" or spec.startswith("local:"):
+        n = spec[len("local:"):] if ":" in spec else str(os.cpu_count() or 1)
+        if not n.isdigit() or int(n) < 1:
+            raise DaskError(f"--dask {spec}: expected local, local:N (N >= 1 workers) or a scheduler address")
+        return "local", int(n)
+    return "address", spec
+
+
+def open_cluster(spec: str, timeout: float = 10.0) -> Cluster:
+    """``local`` / ``local:N``: a LocalCluster of worker processes, one thread each, on this
+    machine; anything else: the address of a running scheduler (``tcp://HOST:8786``)."""
+    kind, value = parse_spec(spec)
+    distributed = _distributed()
+    if kind == "local":
+        local = distributed.LocalCluster(n_workers=value, threads_per_worker=1, processes=True,
+                                         dashboard_address=None)
+        return Cluster(distributed.Client(local), local)
+    try:
+        client = distributed.Client(value, timeout=timeout)
+    except (OSError, ValueError) as exc:  # refused, unreachable, timed out (TimeoutError is an OSError)
+        raise DaskError(f"cannot reach the Dask scheduler at {value} ({type(exc).__name__}: {exc})") from None
+    return Cluster(client)
