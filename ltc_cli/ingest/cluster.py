@@ -17,6 +17,7 @@ executor) and applies stages 2-4 itself. So the map is the one a single process 
 from __future__ import annotations
 
 import os
+from contextlib import contextmanager
 
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.prefetch import Prefetch
@@ -106,10 +107,21 @@ def open_cluster(spec: str, timeout: float = 10.0) -> Cluster:
     distributed = _distributed()
     if kind == "local":
         local = distributed.LocalCluster(n_workers=value, threads_per_worker=1, processes=True,
-                                         dashboard_address=None)
+                                         dashboard_address=":0")
         return Cluster(distributed.Client(local), local)
     try:
         client = distributed.Client(value, timeout=timeout)
     except (OSError, ValueError) as exc:  # refused, unreachable, timed out (TimeoutError is an OSError)
         raise DaskError(f"cannot reach the Dask scheduler at {value} ({type(exc).__name__}: {exc})") from None
     return Cluster(client)
+
+
+@contextmanager
+def cluster_for(spec: str | None):
+    """``with cluster_for(spec) as cluster``: None without a spec, else the open :class:`Cluster`,
+    closed at the end (a ``local`` one with its workers)."""
+    if not spec:
+        yield None
+        return
+    with open_cluster(spec) as cluster:
+        yield cluster
