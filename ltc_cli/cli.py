@@ -61,10 +61,13 @@ def _progress(label: str, count: Callable[[], int]):
         yield bar.update
 
 
-DASK_OPTION = click.option(
-    "--dask", "dask_spec", metavar="local|ADDRESS",
-    help="Load, detect and model frames on Dask workers (extra ltc[dask]): 'local' (or local:N workers) on this "
-         "machine, or a scheduler's address; this process maps them in order (docs/fleet.md).")
+def dask_options(command):
+    command = click.option("--dask-batch", default=4, show_default=True, type=click.IntRange(1, 1000),
+                           help="Frames per Dask task (fewer, larger tasks cost the scheduler less).")(command)
+    return click.option(
+        "--dask", "dask_spec", metavar="local|ADDRESS",
+        help="Load, detect and model frames on Dask workers (extra ltc[dask]): 'local' (or local:N workers) on "
+             "this machine, or a scheduler's address; this process maps them in order (docs/fleet.md).")(command)
 
 
 @cli.command()
@@ -84,9 +87,9 @@ DASK_OPTION = click.option(
 @click.option("--revisit", is_flag=True,
               help="Map recordings already in the map again, as a new session (the same route driven again); "
                    "an interrupted revisit resumes with the same command.")
-@DASK_OPTION
+@dask_options
 def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict,
-           reader, jobs, revisit, dask_spec):
+           reader, jobs, revisit, dask_spec, dask_batch):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     # The handlers go in before anything slow (imports, reading settings, opening recordings), so
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
@@ -106,7 +109,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         if policy:
             cfg["maintenance"]["policy"] = policy
         calib = load_calibration(calibration) if calibration else None
-        with cluster_for(dask_spec) as cluster, _progress("ingest", lambda: count_frames(recordings, reader)) as progress:
+        with cluster_for(dask_spec, dask_batch) as cluster, _progress("ingest", lambda: count_frames(recordings, reader)) as progress:
             summary = run_ingest(
                 list(recordings), map_path, cfg, reader=reader, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=_warn,
@@ -131,18 +134,18 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
 
 @cli.command("ingest-many")
 @click.argument("manifest", type=click.Path(dir_okay=False))
-@DASK_OPTION
+@dask_options
 @click.option("--writers", default=4, show_default=True, type=click.IntRange(1, 256), help="Maps written at once, one writer each.")
 @click.option("--checkpoint-every", default=50, show_default=True, type=click.IntRange(min=0), help="Commit each map every N frames.")
 @click.option("--strict", is_flag=True, help="Stop a recording at its first bad frame instead of skipping it.")
-def ingest_many(manifest, dask_spec, writers, checkpoint_every, strict):
+def ingest_many(manifest, dask_spec, dask_batch, writers, checkpoint_every, strict):
     """Ingest the recordings of MANIFEST.yaml into their maps (schemas/manifest.schema.json); a recording that
     fails is reported and the others go on."""
     with stop_on_signals() as stop:
         from ltc_cli.ingest.cluster import cluster_for
         from ltc_cli.ingest.fleet import ingest_many as run, manifest_frames, summary_line, summary_table
 
-        with cluster_for(dask_spec) as cluster, _progress("ingest-many", lambda: manifest_frames(manifest)) as progress:
+        with cluster_for(dask_spec, dask_batch) as cluster, _progress("ingest-many", lambda: manifest_frames(manifest)) as progress:
             rows = run(manifest, cluster=cluster, writers=writers, checkpoint_every=checkpoint_every, strict=strict,
                        should_stop=lambda: stop["signal"] is not None, warn=_warn, progress=progress)
     for line in summary_table(rows):

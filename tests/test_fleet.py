@@ -80,6 +80,27 @@ def test_dask_map_equals_the_single_process_map(laps, tmp_path, cluster):
     assert_same_map(ref, m)
 
 
+@pytest.mark.parametrize("batch", [1, 3])  # 3 does not divide 20: the last task is short
+def test_any_batch_size_makes_the_same_map(laps, tmp_path, cluster, batch):
+    ref, m = tmp_path / "ref.h5", tmp_path / "dask.h5"
+    ingest([laps[0]], ref, defaults())
+    ingest([laps[0]], m, defaults(), cluster=Cluster(cluster.client, batch=batch))
+    assert_same_map(ref, m)
+
+
+def test_stop_part_way_then_resume_on_dask_gives_the_same_map(laps, tmp_path, cluster):
+    ref, m = tmp_path / "ref.h5", tmp_path / "m.h5"
+    ingest([laps[0]], ref, defaults())
+    done = []
+    s = ingest([laps[0]], m, defaults(), cluster=cluster, checkpoint_every=4, on_frame=lambda summ: done.append(1),
+               should_stop=lambda: len(done) >= 9)
+    assert s.interrupted and s.frames_done == 9
+    assert len(load_map(m).frame_keys) == 9  # the frames still in flight were dropped, not mapped
+    s = ingest([laps[0]], m, defaults(), cluster=cluster)
+    assert not s.interrupted and s.frames_done == 11 and s.frames_already == 9
+    assert_same_map(ref, m)
+
+
 def test_bad_frames_on_workers_are_skipped_at_their_turn(laps, tmp_path, cluster):
     bad = corrupt_copy(laps[0], tmp_path / "bad")
     warned = {}

@@ -23,6 +23,7 @@ from ltc_cli.errors import LtcError
 from ltc_cli.ingest.prefetch import Prefetch
 from ltc_cli.ingest.remote import FrameTask, RecordingJob, unpack
 
+DEFAULT_BATCH = 4  # frames per task (benchmarks/bench_fleet.py)
 MISSING = "--dask needs the optional extra ltc[dask]: pip install 'ltc[dask]'"
 
 
@@ -42,8 +43,8 @@ class RemoteAhead(Prefetch):
     """The look-ahead of one recording on a Dask cluster; ``take`` returns what
     ``load_and_detect`` does, with the frame's stage 1 in place of its detections."""
 
-    def __init__(self, refs, keys, done, job: RecordingJob, pool, lookahead: int):
-        super().__init__(refs, keys, done, None, 1, lookahead, pool=pool, task=FrameTask(job))
+    def __init__(self, refs, keys, done, job: RecordingJob, pool, lookahead: int, batch: int):
+        super().__init__(refs, keys, done, None, 1, lookahead, pool=pool, task=FrameTask(job), batch=batch)
         self.job = job
 
     def take(self, ref):
@@ -58,12 +59,19 @@ class RemoteAhead(Prefetch):
 
 
 class Cluster:
-    """A Dask client (and the LocalCluster behind it, for ``local``), as ingest uses it."""
+    """A Dask client (and the LocalCluster behind it, for ``local``), as ingest uses it.
 
-    def __init__(self, client, local=None, lookahead_per_thread: int = 2):
+    ``batch`` frames go in one task: Dask costs a few ms of scheduler and client CPU per task
+    (docs/fleet.md), which batches divide. Twice as many frames as the cluster has threads times
+    ``batch`` are in flight, so no worker waits for the writer to ask.
+    """
+
+    def __init__(self, client, local=None, batch: int = DEFAULT_BATCH):
+        if batch < 1:
+            raise DaskError(f"frames per Dask task must be >= 1, not {batch}")
         self.client = client
         self.local = local
-        self.lookahead_per_thread = lookahead_per_thread
+        self.batch = batch
         self.executor = client.get_executor(pure=False)
 
     def threads(self) -> int:
@@ -72,11 +80,11 @@ class Cluster:
 
     def ahead(self, setup, plan, classes: list[str], keys: list[str], done) -> RemoteAhead:
         """The look-ahead of one recording (``setup``: a session.RecordingSetup) for a map whose
-        class list is ``classes``: twice as many frames in flight as the cluster has threads."""
+        class list is ``classes``."""
         rec = setup.recording
         job = RecordingJob(str(rec.path), plan.reader, plan.reader_options, rec.identity, plan.settings,
                            tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range))
-        return RemoteAhead(rec.frames, keys, done, job, self.executor, self.lookahead_per_thread * self.threads())
+        return RemoteAhead(rec.frames, keys, done, job, self.executor, 2 * self.batch * self.threads(), self.batch)
 
     def close(self) -> None:
         self.client.close()
@@ -100,28 +108,31 @@ def parse_spec(spec: str):
     return "address", spec
 
 
-def open_cluster(spec: str, timeout: float = 10.0) -> Cluster:
+def open_cluster(spec: str, timeout: float = 10.0, batch: int = DEFAULT_BATCH) -> Cluster:
     """``local`` / ``local:N``: a LocalCluster of worker processes, one thread each, on this
     machine; anything else: the address of a running scheduler (``tcp://HOST:8786``)."""
     kind, value = parse_spec(spec)
     distributed = _distributed()
     if kind == "local":
-        local = distributed.LocalCluster(n_workers=value, threads_per_worker=1, processes=True,
-                                         dashboard_address=":0")
-        return Cluster(distributed.Client(local), local)
+        try:
+            local = distributed.LocalCluster(n_workers=value, threads_per_worker=1, processes=True,
+                                             dashboard_address=":0")
+        except Exception as exc:  # cannot start processes, no ports, ...
+            raise DaskError(f"cannot start a local Dask cluster ({type(exc).__name__}: {exc})") from exc
+        return Cluster(distributed.Client(local), local, batch)
     try:
         client = distributed.Client(value, timeout=timeout)
     except (OSError, ValueError) as exc:  # refused, unreachable, timed out (TimeoutError is an OSError)
         raise DaskError(f"cannot reach the Dask scheduler at {value} ({type(exc).__name__}: {exc})") from None
-    return Cluster(client)
+    return Cluster(client, batch=batch)
 
 
 @contextmanager
-def cluster_for(spec: str | None):
+def cluster_for(spec: str | None, batch: int = DEFAULT_BATCH):
     """``with cluster_for(spec) as cluster``: None without a spec, else the open :class:`Cluster`,
     closed at the end (a ``local`` one with its workers)."""
     if not spec:
         yield None
         return
-    with open_cluster(spec) as cluster:
+    with open_cluster(spec, batch=batch) as cluster:
         yield cluster

@@ -140,11 +140,15 @@ def _opened(job: RecordingJob) -> _Opened:
 
 @dataclass(frozen=True)
 class FrameTask:
-    """``FrameTask(job)(position, key)``: load, detect and model one frame on a worker."""
+    """``FrameTask(job)([(position, key), ...])``: load, detect and model frames of one recording on
+    a worker; one result (a RemoteFrame, or a Failure) per frame."""
 
     job: RecordingJob
 
-    def __call__(self, position: int, key: str):
+    def __call__(self, items) -> list:
+        return [self.one(position, key) for position, key in items]
+
+    def one(self, position: int, key: str):
         try:
             return self.run(position, key)
         except FrameError as exc:
