@@ -11,6 +11,7 @@ Prints, each run into a fresh map:
   result on the wire (what travels instead of the masks and the full depth image);
 - the writer alone: stages 2-4 and the commits fed from stage 1 results already made (an executor
   that hands them back at once): the ceiling of one map's writer, however many workers feed it;
+- two writers (two maps) at once in one process, as ``ltc ingest-many`` runs them;
 - ``--dask`` with 1 and 2 worker processes (one thread each) on this machine: frames/s, cluster
   start-up not included, and whether the map equals the single-process one;
 - the scheduler overhead per frame: ``--noop`` tasks that return a result of the same size, through
@@ -27,7 +28,7 @@ import pickle
 import sys
 import tempfile
 import time
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from functools import partial
 from pathlib import Path
 from types import SimpleNamespace
@@ -55,14 +56,16 @@ class InlinePool:
     def __init__(self):
         self.results: dict = {}
         self.seconds = 0.0
+        self.cpu = 0.0
         self.bytes: list[int] = []
 
     def submit(self, task, items):
         for item in items:
             if item not in self.results:
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 res = task([item])[0]
                 self.seconds += time.perf_counter() - t0
+                self.cpu += time.process_time() - c0
                 self.bytes.append(len(pickle.dumps(res, protocol=5)))
                 self.results[item] = res
         fut = Future()
@@ -130,23 +133,32 @@ def main():
     print(f"{rec.name} with {Path(args.model).name} (onnxruntime, 1 thread per detector)")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         s = ingest([rec], tmp / "single.h5", cfg)
         single = s.frames_done / (time.perf_counter() - t0)
         n = s.frames_done
-        print(f"  single process             {single:6.2f} frames/s  ({1000 / single:.0f} ms/frame, {n} frames)")
+        print(f"  single process             {single:6.2f} frames/s  ({1000 / single:.0f} ms/frame wall, "
+              f"{1000 * (time.process_time() - c0) / n:.0f} ms CPU; {n} frames)")
 
         inline = InlineCluster()
         ingest([rec], tmp / "inline.h5", cfg, cluster=inline)
         pool = inline.executor
-        print(f"  stage 1 alone (a worker)   {n / pool.seconds:6.2f} frames/s  ({1000 * pool.seconds / n:.0f} ms/frame); "
-              f"result {np.mean(pool.bytes) / 1e3:.1f} kB/frame on the wire (full depth alone: "
-              f"{640 * 480 * 4 / 1e3:.0f} kB)")
-        t0 = time.perf_counter()
+        print(f"  stage 1 alone (a worker)   {n / pool.seconds:6.2f} frames/s  ({1000 * pool.seconds / n:.0f} ms/frame "
+              f"wall, {1000 * pool.cpu / n:.0f} ms CPU); result {np.mean(pool.bytes) / 1e3:.1f} kB/frame on the "
+              f"wire (the full depth image alone: {640 * 480 * 4 / 1e3:.0f} kB)")
+        t0, c0 = time.perf_counter(), time.process_time()
         w = ingest([rec], tmp / "writer.h5", cfg, cluster=inline)
         writer = w.frames_done / (time.perf_counter() - t0)
-        print(f"  writer alone (stages 2-4)  {writer:6.2f} frames/s  ({1000 / writer:.1f} ms/frame, commits "
-              f"included): one map's ceiling; same map: {same_map(tmp / 'single.h5', tmp / 'writer.h5')}")
+        print(f"  writer alone (stages 2-4)  {writer:6.2f} frames/s  ({1000 / writer:.1f} ms/frame wall, "
+              f"{1000 * (time.process_time() - c0) / n:.1f} ms CPU, commits included): one map's ceiling; "
+              f"same map: {same_map(tmp / 'single.h5', tmp / 'writer.h5')}")
+
+        t0 = time.perf_counter()
+        with ThreadPoolExecutor(2) as writers:  # two maps, two writer threads of one process
+            list(writers.map(lambda k: ingest([rec], tmp / f"writer{k}.h5", cfg, cluster=inline), (1, 2)))
+        both = 2 * n / (time.perf_counter() - t0)
+        print(f"  2 writers in one process   {both:6.2f} frames/s  (two maps at once, threads: they share one "
+              f"interpreter lock)")
 
         nbytes = int(np.mean(pool.bytes))
         for workers in (1, 2):
