@@ -9,12 +9,10 @@ import time
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import ltc_cli.recordings.writer as rec_writer
 import ltc_cli.tools.simulate as sim
 from ltc_cli import plugins
-from ltc_cli.cli import cli
 from ltc_cli.config import defaults
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.cluster import Cluster, DaskError, open_cluster
@@ -24,22 +22,19 @@ from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
 from ltc_cli.pipeline.maintenance import ray_grid
 from ltc_cli.types import Intrinsics
-from tests.test_jobs import assert_same_map, corrupt_copy, summary_line
+from tests.test_jobs import assert_same_map, corrupt_copy, run, summary_line
 
 distributed = pytest.importorskip("distributed")
 
 
-def run(*args):
-    return CliRunner().invoke(cli, [str(a) for a in args])
-
-
 @pytest.fixture(scope="module")
 def laps(tmp_path_factory):
-    out = tmp_path_factory.mktemp("house")
+    """Three laps of the tiny simulated house, 20 frames each, at 320 x 240."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(rec_writer, "PNG_LEVEL", 1)  # fast PNGs: same pixels
+        out = tmp_path_factory.mktemp("house")
         sim.simulate(out, scene="tiny", laps=3, seed=2, width=320, height=240, frames_per_room=20)
-    return out / "lap1", out / "lap2", out / "lap3"
+    return tuple(out / f"lap{k}" for k in (1, 2, 3))
 
 
 @pytest.fixture(scope="module")

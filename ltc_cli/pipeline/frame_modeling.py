@@ -66,17 +66,9 @@ def in_map_classes(detections, class_mapper) -> tuple[list[np.ndarray], list[np.
     return masks, vectors
 
 
-def model_frame(
-    masks: list[np.ndarray],
-    scores: list[np.ndarray],
-    depth_m: np.ndarray,
-    T_map_camera: np.ndarray,
-    intr: Intrinsics,
-    depth_range: tuple[float, float],
-    config: dict,
-    flags: ClassFlags,
-    floor_z: float | None = None,
-) -> FrameModel:
+def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.ndarray, T_map_camera: np.ndarray,
+                intr: Intrinsics, depth_range: tuple[float, float], config: dict, flags: ClassFlags,
+                floor_z: float | None = None) -> FrameModel:
     """Stage 1 of one frame: drop moving classes, then model the rest (see :func:`model_detections`).
 
     masks: list of (H, W) bool; scores: list of (C+1,) class vectors over the map's classes;
