@@ -3,9 +3,11 @@
 
 import os
 import signal
+import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +24,7 @@ from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
 from ltc_cli.pipeline.maintenance import ray_grid
 from ltc_cli.types import Intrinsics
+from tests.test_ingest import wait_for_file
 from tests.test_jobs import assert_same_map, corrupt_copy, run, summary_line
 
 distributed = pytest.importorskip("distributed")
@@ -96,6 +99,20 @@ def test_stop_part_way_then_resume_on_dask_gives_the_same_map(laps, tmp_path, cl
     assert_same_map(ref, m)
 
 
+def test_a_stop_request_ends_the_wait_for_a_cluster_that_has_no_worker(laps, tmp_path):
+    asked = []
+
+    def should_stop():  # no at the first frame; yes once the writer waits for its result
+        asked.append(1)
+        return len(asked) > 1
+
+    local = distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0")
+    with Cluster(distributed.Client(local), local) as c:
+        s = ingest([laps[0]], tmp_path / "m.h5", defaults(), cluster=c, should_stop=should_stop)
+    assert s.interrupted and s.frames_done == 0
+    assert not (tmp_path / "m.h5").exists()  # nothing mapped: the file is not created
+
+
 def test_bad_frames_on_workers_are_skipped_at_their_turn(laps, tmp_path, cluster):
     bad = corrupt_copy(laps[0], tmp_path / "bad")
     warned = {}
@@ -154,6 +171,35 @@ def test_a_worker_killed_mid_run_does_not_change_the_map(laps, tmp_path, monkeyp
     finally:
         monkeypatch.delenv("LTC_PLUGINS")
         plugins.reset()
+
+
+def ltc_job(*args, env):
+    """``ltc ARGS`` in a process group of its own, as a terminal runs a job."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent), **env}
+    return subprocess.Popen([sys.executable, "-m", "ltc_cli.cli", *map(str, args)], env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+
+
+def test_ctrl_c_at_the_terminal_stops_the_writer_not_the_local_workers(laps, tmp_path):
+    """SIGINT to the whole process group, as a terminal sends it: the writer commits and exits 130,
+    the local workers (which ignore it) are closed by the writer, and the same command resumes."""
+    ref, m, ready = tmp_path / "ref.h5", tmp_path / "m.h5", tmp_path / "ready"
+    env = {"LTC_PLUGINS": "tests.slow_detector", "LTC_TEST_DELAY": "0.1", "LTC_TEST_READY": str(ready)}
+    args = ("ingest", laps[0], "--map", m, "--detector", "slow-recorded", "--dask", "local:2", "--dask-batch", "1")
+    p = ltc_job(*args, "--checkpoint-every", "2", env=env)
+    wait_for_file(ready, p)  # a worker is detecting: the cluster is up, the handlers are in place
+    os.killpg(p.pid, signal.SIGINT)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert "(interrupted: run the same command again to resume)" in out
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err
+    done = len(load_map(m).frame_keys) if m.exists() else 0
+    p = ltc_job(*args, env={**env, "LTC_TEST_DELAY": "0"})
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 0 and f"{20 - done} frames ingested" in out, err
+    p = ltc_job("ingest", laps[0], "--map", ref, "--detector", "slow-recorded", env={**env, "LTC_TEST_DELAY": "0"})
+    assert p.communicate(timeout=120) and p.returncode == 0
+    assert_same_map(ref, m)
 
 
 def test_without_dask_the_option_says_what_to_install(laps, tmp_path, monkeypatch):

@@ -16,14 +16,19 @@ executor) and applies stages 2-4 itself. So the map is the one a single process 
 
 from __future__ import annotations
 
+import logging
 import os
+import signal
+import threading
+from concurrent.futures import TimeoutError as FutureTimeout  # not yet the builtin one in 3.10
 from contextlib import contextmanager
 
 from ltc_cli.errors import LtcError
-from ltc_cli.ingest.prefetch import Prefetch
+from ltc_cli.ingest.prefetch import Prefetch, Stopped
 from ltc_cli.ingest.remote import FrameTask, RecordingJob, unpack
 
 DEFAULT_BATCH = 4  # frames per task (benchmarks/bench_fleet.py)
+STOP_POLL = 0.25  # seconds between looks at the stop request while a frame is awaited
 MISSING = "--dask needs the optional extra ltc[dask]: pip install 'ltc[dask]'"
 
 
@@ -43,14 +48,25 @@ class RemoteAhead(Prefetch):
     """The look-ahead of one recording on a Dask cluster; ``take`` returns what
     ``load_and_detect`` does, with the frame's stage 1 in place of its detections."""
 
-    def __init__(self, refs, keys, done, job: RecordingJob, pool, lookahead: int, batch: int):
+    def __init__(self, refs, keys, done, job: RecordingJob, pool, lookahead: int, batch: int, should_stop):
         super().__init__(refs, keys, done, None, 1, lookahead, pool=pool, task=FrameTask(job), batch=batch)
         self.job = job
+        self.should_stop = should_stop
+
+    def wait(self, fut):
+        # A cluster may take any time (its workers gone, the scheduler waiting for new ones): a
+        # stop request (Ctrl-C, SIGTERM) ends the wait, and the run commits what it has mapped.
+        while True:
+            try:
+                return fut.result(timeout=STOP_POLL)
+            except FutureTimeout:
+                if self.should_stop():
+                    raise Stopped() from None
 
     def take(self, ref):
         try:
             result = super().take(ref)
-        except LtcError:
+        except (LtcError, Stopped):
             raise
         except Exception as exc:  # e.g. KilledWorker after too many deaths, a lost scheduler
             raise DaskError(f"the Dask cluster failed frame {ref.key} ({type(exc).__name__}: {exc})",
@@ -78,13 +94,14 @@ class Cluster:
         """Worker threads in the cluster now (at least 1)."""
         return max(1, sum(self.client.nthreads().values()))
 
-    def ahead(self, setup, plan, classes: list[str], keys: list[str], done) -> RemoteAhead:
+    def ahead(self, setup, plan, classes: list[str], keys: list[str], done, should_stop) -> RemoteAhead:
         """The look-ahead of one recording (``setup``: a session.RecordingSetup) for a map whose
         class list is ``classes``."""
         rec = setup.recording
         job = RecordingJob(str(rec.path), plan.reader, plan.reader_options, rec.identity, plan.settings,
                            tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range))
-        return RemoteAhead(rec.frames, keys, done, job, self.executor, 2 * self.batch * self.threads(), self.batch)
+        return RemoteAhead(rec.frames, keys, done, job, self.executor, 2 * self.batch * self.threads(), self.batch,
+                           should_stop)
 
     def close(self) -> None:
         self.client.close()
@@ -108,6 +125,20 @@ def parse_spec(spec: str):
     return "address", spec
 
 
+@contextmanager
+def _sigint_ignored():
+    """SIGINT ignored while local workers start: they inherit that, so a Ctrl-C at the terminal (sent
+    to the whole process group) stops only the writer, which commits and then closes them."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def open_cluster(spec: str, timeout: float = 10.0, batch: int = DEFAULT_BATCH) -> Cluster:
     """``local`` / ``local:N``: a LocalCluster of worker processes, one thread each, on this
     machine; anything else: the address of a running scheduler (``tcp://HOST:8786``)."""
@@ -115,8 +146,9 @@ def open_cluster(spec: str, timeout: float = 10.0, batch: int = DEFAULT_BATCH) -
     distributed = _distributed()
     if kind == "local":
         try:
-            local = distributed.LocalCluster(n_workers=value, threads_per_worker=1, processes=True,
-                                             dashboard_address=":0")
+            with _sigint_ignored():
+                local = distributed.LocalCluster(n_workers=value, threads_per_worker=1, processes=True,
+                                                 dashboard_address=":0", silence_logs=logging.ERROR)
         except Exception as exc:  # cannot start processes, no ports, ...
             raise DaskError(f"cannot start a local Dask cluster ({type(exc).__name__}: {exc})") from exc
         return Cluster(distributed.Client(local), local, batch)

@@ -29,6 +29,10 @@ def load_and_detect(det, lock=None):
     return fetch
 
 
+class Stopped(Exception):
+    """The caller asked to stop while a frame's result was awaited (see Prefetch.wait)."""
+
+
 class Prefetch:
     """Loads and detects the frames of one recording ahead of the mapper in a thread pool.
 
@@ -87,7 +91,11 @@ class Prefetch:
         if i not in self.pending:  # not submitted (its key was already in the map then): do it now
             self._submit([(i, ref.key)])
         fut, k = self.pending.pop(i)
-        return fut.result()[k]
+        return self.wait(fut)[k]
+
+    def wait(self, fut):
+        """The result of a batch's future (a subclass may stop waiting: raise Stopped)."""
+        return fut.result()
 
     def close(self) -> None:
         """Cancel the work not started, wait for the frames in flight, drop every result."""

@@ -35,7 +35,7 @@ from ltc_cli import __version__, plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
-from ltc_cli.ingest.prefetch import Prefetch, load_and_detect
+from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
@@ -280,7 +280,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             T_up = setup.T_up
             keys = [frame_key(rec.identity, ref.key, summary.visit) for ref in rec.frames]
             if opts.cluster is not None:
-                ahead = opts.cluster.ahead(setup, plan, smap.classes, keys, smap.frame_keys)
+                ahead = opts.cluster.ahead(setup, plan, smap.classes, keys, smap.frame_keys, opts.should_stop)
             elif opts.jobs > 1:
                 ahead = Prefetch(rec.frames, keys, smap.frame_keys, det, opts.jobs)
             fetch = ahead.take if ahead is not None else load_and_detect(det)
@@ -295,6 +295,9 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     continue
                 try:
                     frame, dets, t0, t1, t2 = fetch(ref)
+                except Stopped:  # asked to stop while a Dask cluster had the frame
+                    summary.interrupted = True
+                    break
                 except FrameError as exc:
                     if opts.strict:
                         raise
