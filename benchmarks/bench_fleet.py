@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from ltc_cli.config import load_config  # noqa: E402
-from ltc_cli.ingest.cluster import Cluster  # noqa: E402
+from ltc_cli.ingest.cluster import Cluster, open_cluster  # noqa: E402
 from ltc_cli.ingest.prefetch import Prefetch  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
@@ -124,7 +124,7 @@ def main():
     if not Path(args.model).is_file() or not Path(args.data).is_dir():
         sys.exit("bench_fleet: needs the shared model and recording (../shared)")
     try:
-        import distributed
+        import distributed  # noqa: F401
     except ImportError:
         sys.exit("bench_fleet: needs the extra ltc[dask]")
     sets = ["detector.name=onnx-yolo-seg", f"detector.options.model={args.model}"]
@@ -162,16 +162,18 @@ def main():
 
         nbytes = int(np.mean(pool.bytes))
         for workers in (1, 2):
-            local = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                             dashboard_address=":0")
-            with Cluster(distributed.Client(local), local, args.batch) as cluster:
+            with open_cluster(f"local:{workers}", batch=args.batch) as cluster:  # as --dask local:N
                 m = tmp / f"dask{workers}.h5"
-                t0 = time.perf_counter()
+                w0 = sum(cluster.client.run(time.process_time).values())
+                t0, c0 = time.perf_counter(), time.process_time()
                 d = ingest([rec], m, cfg, cluster=cluster)
                 fps = d.frames_done / (time.perf_counter() - t0)
+                here = (time.process_time() - c0) / n
+                there = (sum(cluster.client.run(time.process_time).values()) - w0) / n
                 print(f"  --dask, {workers} worker{'s' if workers > 1 else ' '}          {fps:6.2f} frames/s  "
                       f"({fps / single:.2f}x single; {args.batch} frames per task; model loading on the workers "
-                      f"included); same map: {same_map(tmp / 'single.h5', m)}")
+                      f"included); CPU per frame: workers {1000 * there:.0f} ms, writer + scheduler "
+                      f"{1000 * here:.1f} ms; same map: {same_map(tmp / 'single.h5', m)}")
                 if workers == 2:
                     for batch in (1, 4, 16):
                         wall, cpu = noop_overhead(cluster, cfg, args.noop, nbytes, batch)
