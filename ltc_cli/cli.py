@@ -79,6 +79,13 @@ def reader_options(items) -> dict:
         else:
             out[key] = value
     return out
+def dask_options(command):
+    command = click.option("--dask-batch", default=4, show_default=True, type=click.IntRange(1, 1000),
+                           help="Frames per Dask task (fewer, larger tasks cost the scheduler less).")(command)
+    return click.option(
+        "--dask", "dask_spec", metavar="local|ADDRESS",
+        help="Load, detect and model frames on Dask workers (extra ltc[dask]): 'local' (or local:N workers) on "
+             "this machine, or a scheduler's address; this process maps them in order (docs/fleet.md).")(command)
 
 
 @cli.command()
@@ -99,12 +106,16 @@ def reader_options(items) -> dict:
 @click.option("--revisit", is_flag=True,
               help="Map recordings already in the map again, as a new session (the same route driven again); "
                    "an interrupted revisit resumes with the same command.")
+@dask_options
 def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict,
-           reader, reader_opts, jobs, revisit):
+           reader, reader_opts, jobs, revisit, dask_spec, dask_batch):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     # The handlers go in before anything slow (imports, reading settings, opening recordings), so
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
+    if dask_spec and jobs > 1:
+        raise click.UsageError("--jobs and --dask: give one (with --dask the workers run ahead)")
     with stop_on_signals() as stop:
+        from ltc_cli.ingest.cluster import cluster_for
         from ltc_cli.ingest.session import ingest as run_ingest
         from ltc_cli.recordings.open import count_frames
         from ltc_cli.tools.calibration_file import load_calibration
@@ -118,11 +129,12 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
             cfg["maintenance"]["policy"] = policy
         calib = load_calibration(calibration) if calibration else None
         r_opts = reader_options(reader_opts)
-        with _progress("ingest", lambda: count_frames(recordings, reader, r_opts)) as progress:
+        with cluster_for(dask_spec, dask_batch) as cluster, \
+                _progress("ingest", lambda: count_frames(recordings, reader, r_opts)) as progress:
             summary = run_ingest(
                 list(recordings), map_path, cfg, reader=reader, reader_options=r_opts, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=_warn,
-                should_stop=lambda: stop["signal"] is not None, jobs=jobs, revisit=revisit,
+                should_stop=lambda: stop["signal"] is not None, jobs=jobs, revisit=revisit, cluster=cluster,
             )
     visit = f"visit {summary.visit}; " if summary.visit > 1 else ""
     line = (
@@ -139,6 +151,31 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         raise click.ClickException(
             f"{', '.join(recordings)}: no frame could be mapped, all {summary.frames_skipped} were bad "
             f"(see the warnings); {map_path} is unchanged")
+
+
+@cli.command("ingest-many")
+@click.argument("manifest", type=click.Path(dir_okay=False))
+@dask_options
+@click.option("--writers", default=4, show_default=True, type=click.IntRange(1, 256), help="Maps written at once, one writer each.")
+@click.option("--checkpoint-every", default=50, show_default=True, type=click.IntRange(min=0), help="Commit each map every N frames.")
+@click.option("--strict", is_flag=True, help="Stop a recording at its first bad frame instead of skipping it.")
+def ingest_many(manifest, dask_spec, dask_batch, writers, checkpoint_every, strict):
+    """Ingest the recordings of MANIFEST.yaml into their maps (schemas/manifest.schema.json); a recording that
+    fails is reported and the others go on."""
+    with stop_on_signals() as stop:
+        from ltc_cli.ingest.cluster import cluster_for
+        from ltc_cli.ingest.fleet import ingest_many as run, manifest_frames, summary_line, summary_table
+
+        with cluster_for(dask_spec, dask_batch) as cluster, _progress("ingest-many", lambda: manifest_frames(manifest)) as progress:
+            rows = run(manifest, cluster=cluster, writers=writers, checkpoint_every=checkpoint_every, strict=strict,
+                       should_stop=lambda: stop["signal"] is not None, warn=_warn, progress=progress)
+    for line in summary_table(rows):
+        click.echo(line)
+    click.echo(f"{manifest}: {summary_line(rows)}")
+    if stop["signal"] is not None:
+        sys.exit(130 if stop["signal"] == signal.SIGINT else 143)
+    if any(r.status == "failed" for r in rows):
+        sys.exit(1)
 
 
 @cli.command()

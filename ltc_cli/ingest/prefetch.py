@@ -29,6 +29,10 @@ def load_and_detect(det, lock=None):
     return fetch
 
 
+class Stopped(Exception):
+    """The caller asked to stop while a frame's result was awaited (see Prefetch.wait)."""
+
+
 class Prefetch:
     """Loads and detects the frames of one recording ahead of the mapper in a thread pool.
 
@@ -36,37 +40,67 @@ class Prefetch:
     for refs asked in recording order; frames whose key is in ``done`` when they come into the
     look-ahead window are never loaded. Everything is submitted from the calling thread, so ``done``
     (the map's frame keys) is only read there.
+
+    ``pool`` and ``task`` replace the thread pool and ``load_and_detect``: any
+    ``concurrent.futures.Executor`` (a Dask client's ``get_executor()``) and a callable
+    ``task([(position, key), ...]) -> [result, ...]`` it can run (remote.FrameTask), given up to
+    ``batch`` frames at a time (fewer, larger tasks: the overhead per task is paid once per batch).
+    The pool then belongs to the caller: ``close`` cancels what is pending and leaves it open.
     """
 
-    def __init__(self, refs, keys, done, det, jobs: int, lookahead: int | None = None):
+    def __init__(self, refs, keys, done, det, jobs: int, lookahead: int | None = None, pool=None, task=None,
+                 batch: int = 1):
         self.refs = list(refs)
         self.keys = list(keys)
         self.done = done
         self.position = {id(r): i for i, r in enumerate(self.refs)}
-        lock = None if getattr(det, "thread_safe", False) else threading.Lock()
-        self.fetch = load_and_detect(det, lock)
-        self.lookahead = max(1, lookahead or 2 * jobs)
-        self.pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="ltc-detect")
-        self.pending: dict = {}  # position -> Future
+        if task is None:
+            lock = None if getattr(det, "thread_safe", False) else threading.Lock()
+            fetch = load_and_detect(det, lock)
+            task = lambda items: [fetch(self.refs[j]) for j, _ in items]  # noqa: E731
+        self.task = task
+        self.batch = max(1, batch)
+        self.lookahead = max(self.batch, lookahead or 2 * jobs)
+        self.own_pool = pool is None
+        self.pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="ltc-detect") if pool is None else pool
+        self.pending: dict = {}  # position -> (Future of its batch, its place in the batch)
         self.next = 0  # the next position to consider for submission
+
+    def _submit(self, items) -> None:
+        fut = self.pool.submit(self.task, items)
+        for k, (j, _) in enumerate(items):
+            self.pending[j] = (fut, k)
+
+    def _drop(self, j) -> None:
+        fut, _ = self.pending.pop(j)
+        if all(f is not fut for f, _ in self.pending.values()):  # no frame of its batch is wanted
+            fut.cancel()
 
     def take(self, ref):
         i = self.position[id(ref)]
         for j in [j for j in self.pending if j < i]:  # frames the caller skipped after all
-            self.pending.pop(j).cancel()
+            self._drop(j)
         while self.next < len(self.refs) and (self.next <= i or len(self.pending) < self.lookahead):
-            j = self.next
-            self.next += 1
-            if self.keys[j] not in self.done:
-                self.pending[j] = self.pool.submit(self.fetch, self.refs[j])
-        fut = self.pending.pop(i, None)
-        if fut is None:  # not submitted (its key was already in the map then): do it here
-            return self.fetch(ref)
+            items = []
+            while self.next < len(self.refs) and len(items) < self.batch:
+                if self.keys[self.next] not in self.done:
+                    items.append((self.next, self.refs[self.next].key))
+                self.next += 1
+            if items:
+                self._submit(items)
+        if i not in self.pending:  # not submitted (its key was already in the map then): do it now
+            self._submit([(i, ref.key)])
+        fut, k = self.pending.pop(i)
+        return self.wait(fut)[k]
+
+    def wait(self, fut):
+        """The result of a batch's future (a subclass may stop waiting: raise Stopped)."""
         return fut.result()
 
     def close(self) -> None:
         """Cancel the work not started, wait for the frames in flight, drop every result."""
-        for fut in self.pending.values():
+        for fut, _ in self.pending.values():
             fut.cancel()
         self.pending.clear()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        if self.own_pool:
+            self.pool.shutdown(wait=True, cancel_futures=True)

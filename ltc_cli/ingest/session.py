@@ -35,10 +35,11 @@ from ltc_cli import __version__, plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
-from ltc_cli.ingest.prefetch import Prefetch, load_and_detect
+from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
+from ltc_cli.pipeline.frame_modeling import FrameModel, in_map_classes, most_confident
 from ltc_cli.pipeline.mapper import Mapper
 from ltc_cli.recordings.open import open_recording
 from ltc_cli.tools.calibration_file import calibration_settings, load_calibration
@@ -87,6 +88,7 @@ class RunOptions:
     warn: Callable[[str], None] = _ignore
     should_stop: Callable[[], bool] = _never
     on_frame: Callable | None = None
+    cluster: object | None = None  # a cluster.Cluster: stage 1 runs on its Dask workers
 
     def tick(self) -> None:
         if self.progress:
@@ -120,6 +122,8 @@ class Plan:
     metric: object
     policy: object
     revisit: bool = False
+    reader: str | None = None  # as given, so that a Dask worker opens the recordings the same way
+    reader_options: dict | None = None
 
 
 def now_iso() -> str:
@@ -148,6 +152,7 @@ def ingest(
     on_frame: Callable | None = None,
     jobs: int = 1,
     revisit: bool = False,
+    cluster=None,
 ) -> IngestSummary:
     """Ingest recordings into the map at ``map_path`` (created when it does not exist).
 
@@ -155,18 +160,22 @@ def ingest(
     interrupted ingest resumes it, and re-running a finished one changes nothing. ``revisit`` maps
     the recordings again as a new session, and resumes such a session when it was interrupted.
     ``jobs`` > 1 loads and detects frames ahead in that many threads; the map is the same (module
-    docstring). ``config`` is checked against the settings schema and never written into.
+    docstring). ``cluster`` (a :class:`ltc_cli.ingest.cluster.Cluster`) runs loading, detection and
+    object modeling on Dask workers instead (``jobs`` is then not used); the map is the same.
+    ``config`` is checked against the settings schema and never written into.
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ConfigError(f"jobs must be an integer >= 1, not {jobs!r}")
     t_start = time.perf_counter()
     map_path = Path(map_path)
     opts = RunOptions(checkpoint_every=checkpoint_every, strict=strict, jobs=jobs, progress=progress,
-                      warn=warn or _ignore, should_stop=should_stop or _never, on_frame=on_frame)
+                      warn=warn or _ignore, should_stop=should_stop or _never, on_frame=on_frame,
+                      cluster=cluster)
     settings = settings_from(config, *([calibration_settings(calibration)] if calibration is not None else []))
     # Everything that can be checked before the map is touched is checked first.
     plan = _plan([open_recording(p, reader, reader_options) for p in recording_paths], settings, calibration,
                  revisit)
+    plan.reader, plan.reader_options = reader, reader_options
 
     lock = MapLock(map_path).acquire()
     try:
@@ -265,12 +274,6 @@ def detections_source(det, frame) -> str:
     return str(frame.rgb_path or frame.key)
 
 
-def most_confident(dets: list, k: int) -> list:
-    """The k detections with the highest top score, in their original order."""
-    top = np.argsort([-float(np.max(d.scores)) for d in dets], kind="stable")[:k]
-    return [dets[i] for i in sorted(top)]
-
-
 def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> IngestSummary:
     n_sessions = len(smap.sessions)
     session, row = _session_row(smap, plan)
@@ -289,7 +292,9 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             mapper_classes = ClassMapper(det.classes, smap.classes, plan.settings["integration"]["unassigned_score"])
             T_up = setup.T_up
             keys = [frame_key(rec.identity, ref.key, summary.visit) for ref in rec.frames]
-            if opts.jobs > 1:
+            if opts.cluster is not None:
+                ahead = opts.cluster.ahead(setup, plan, smap.classes, keys, smap.frame_keys, opts.should_stop)
+            elif opts.jobs > 1:
                 ahead = Prefetch(rec.frames, keys, smap.frame_keys, det, opts.jobs)
             fetch = ahead.take if ahead is not None else load_and_detect(det)
             warned: set = set()  # once-keys of this recording's frame warnings already reported
@@ -303,6 +308,9 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     continue
                 try:
                     frame, dets, t0, t1, t2 = fetch(ref)
+                except Stopped:  # asked to stop while a Dask cluster had the frame
+                    summary.interrupted = True
+                    break
                 except FrameError as exc:
                     if opts.strict:
                         raise
@@ -314,21 +322,18 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 _report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
                 stage["detect"] += t2 - t1
-                if len(dets) > max_dets:
+                if not isinstance(dets, FrameModel) and len(dets) > max_dets:
                     opts.warn(f"{detections_source(det, frame)}: {len(dets)} detections in one frame, more than "
-                         f"modeling.max_detections ({max_dets}); kept the {max_dets} most confident")
+                              f"modeling.max_detections ({max_dets}); kept the {max_dets} most confident")
                     dets = most_confident(dets, max_dets)
-                masks, vectors = [], []
-                for d in dets:
-                    v = mapper_classes(d.scores)
-                    if v is not None:
-                        masks.append(d.mask)
-                        vectors.append(v)
+                stage1 = dets if isinstance(dets, FrameModel) else None  # made by a Dask worker
+                masks, vectors = in_map_classes(dets, mapper_classes) if stage1 is None else ([], [])
                 res = mapper.process_frame(
                     ref.index, key, masks, vectors,
                     frame.depth_m, T_up @ frame.T_world_camera, frame.intrinsics, setup.depth_range,
-                    floor_z=setup.floor_z,
+                    floor_z=setup.floor_z, stage1=stage1,
                 )
+                stage["modeling"] += stage1.seconds if stage1 is not None else 0.0
                 for k, v in res.timings.items():
                     stage[k] += v
                 smap.frame_keys.add(key)

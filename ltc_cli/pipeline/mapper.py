@@ -25,7 +25,7 @@ from ltc_cli.pipeline.maintenance import (
     camera_view, class_hit_counts, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
 )
-from ltc_cli.pipeline.modeling import model_detections
+from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.text import plural
 from ltc_cli.types import Intrinsics
 
@@ -55,12 +55,7 @@ class Mapper:
         t = smap.objects
         for row in smap.active_rows():
             self.index.insert(int(row), t.center[row], t.size[row])
-        moving = set(config["map"].get("moving_classes") or [])
-        self.moving_class = np.array([c in moving for c in smap.classes] + [False])
-        floor = set(config["modeling"]["floor_classes"] or [])
-        self.grounded_class = np.array([c in floor for c in smap.classes] + [False])
-        priors = config["modeling"]["class_depth"] or {}
-        self.depth_prior = np.array([float(priors.get(c, np.nan)) for c in smap.classes] + [np.nan])
+        self.flags = ClassFlags.from_settings(smap.classes, config)
         m_cfg = config["maintenance"]
         self.confirmed = max(1, int(m_cfg["min_detections"]))
         rows = smap.active_rows()
@@ -143,25 +138,26 @@ class Mapper:
         depth_range: tuple[float, float],
         clock=None,
         floor_z: float | None = None,
+        stage1: FrameModel | None = None,
     ) -> FrameResult:
         """Model, associate, integrate and maintain one frame.
 
         masks: list of (H, W) bool; scores: list of (C+1,) class vectors over the map's classes.
         T_map_camera: (4, 4) camera-to-map pose (up rotation already applied).
         floor_z: the floor's height in the map frame, when known (grounds floor-standing furniture).
+        stage1: the frame's stage 1 made elsewhere (a Dask worker, by :func:`model_frame` from the
+        same inputs); then masks and scores are not used, and depth_m is read only where stage 4
+        reads it (see ltc_cli/ingest/remote.py).
         """
         clock = clock or time.perf_counter
-        res = FrameResult(detections=len(masks))
         T_camera_map = invert_pose(T_map_camera)
 
         t0 = clock()
-        top = np.array([int(top_class(v)) for v in scores], dtype=int)
-        if self.moving_class[top].any():  # people and animals are never map objects
-            keep = np.flatnonzero(~self.moving_class[top])
-            masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
-        modeled = model_detections(masks, depth_m, intr, T_map_camera, self.cfg["modeling"], depth_range,
-                                   grounded=self.grounded_class[top], floor_z=floor_z,
-                                   class_depth=self.depth_prior[top])
+        if stage1 is None:
+            stage1 = model_frame(masks, scores, depth_m, T_map_camera, intr, depth_range, self.cfg, self.flags,
+                                 floor_z)
+        res = FrameResult(detections=stage1.detections)
+        scores, modeled = stage1.scores, stage1.modeled
         res.boxes = len(modeled.source)
         t1 = clock()
 

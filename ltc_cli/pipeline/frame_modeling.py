@@ -1,0 +1,91 @@
+"""Stage 1 for one whole frame, as a pure function: the detections of a frame (masks and class
+vectors over the map's classes) -> the modeled boxes.
+
+The mapper calls it at the start of :meth:`Mapper.process_frame`; a distributed ingest calls it on a
+Dask worker and hands the result to ``process_frame(..., stage1=...)``, so the boxes are the same
+whichever process made them. It needs the settings and the map's class list only, never the map.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ltc_cli.map.model import top_class
+from ltc_cli.pipeline.modeling import ModeledDetections, model_detections
+from ltc_cli.types import Intrinsics
+
+
+@dataclass(frozen=True)
+class ClassFlags:
+    """What stage 1 needs to know about each class of the map (arrays (C+1,), ``other`` last).
+
+    moving: never a map object (people, animals); grounded: stands on the floor; depth_prior: the
+    typical depth of a one-view slab (NaN: none).
+    """
+
+    moving: np.ndarray
+    grounded: np.ndarray
+    depth_prior: np.ndarray
+
+    @classmethod
+    def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
+        moving = set(config["map"].get("moving_classes") or [])
+        floor = set(config["modeling"]["floor_classes"] or [])
+        priors = config["modeling"]["class_depth"] or {}
+        return cls(np.array([c in moving for c in classes] + [False]),
+                   np.array([c in floor for c in classes] + [False]),
+                   np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]))
+
+
+@dataclass
+class FrameModel:
+    """Stage 1 of one frame: what stages 2-4 take from the detections.
+
+    detections: how many detections the frame gave (over the map's classes, moving ones included);
+    scores: the class vectors (C+1,) of the detections kept (moving classes dropped);
+    modeled: their boxes, ``modeled.source`` indexing ``scores``; seconds: the time it took.
+    """
+
+    detections: int
+    scores: list[np.ndarray]
+    modeled: ModeledDetections
+    seconds: float = 0.0
+
+
+def in_map_classes(detections, class_mapper) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """(masks, class vectors over the map's classes) of a detector's detections; those with no
+    score on any of the map's classes are dropped. ``class_mapper``: a :class:`ClassMapper`."""
+    masks, vectors = [], []
+    for d in detections:
+        v = class_mapper(d.scores)
+        if v is not None:
+            masks.append(d.mask)
+            vectors.append(v)
+    return masks, vectors
+
+
+def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.ndarray, T_map_camera: np.ndarray,
+                intr: Intrinsics, depth_range: tuple[float, float], config: dict, flags: ClassFlags,
+                floor_z: float | None = None) -> FrameModel:
+    """Stage 1 of one frame: drop moving classes, then model the rest (see :func:`model_detections`).
+
+    masks: list of (H, W) bool; scores: list of (C+1,) class vectors over the map's classes;
+    T_map_camera: (4, 4) camera-to-map pose (up rotation already applied).
+    """
+    detections = len(masks)
+    top = np.array([int(top_class(v)) for v in scores], dtype=int)
+    if flags.moving[top].any():  # people and animals are never map objects
+        keep = np.flatnonzero(~flags.moving[top])
+        masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
+    modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
+                               grounded=flags.grounded[top], floor_z=floor_z,
+                               class_depth=flags.depth_prior[top])
+    return FrameModel(detections, list(scores), modeled)
+
+
+def most_confident(dets: list, k: int) -> list:
+    """The k detections with the highest top score, in their original order."""
+    top = np.argsort([-float(np.max(d.scores)) for d in dets], kind="stable")[:k]
+    return [dets[i] for i in sorted(top)]
