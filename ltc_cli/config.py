@@ -4,7 +4,8 @@ The merged settings are checked against ``config.schema.json`` (every key, its t
 an unknown key, a wrong type, or a value out of range (negative, NaN, a zero cell size) is one
 :class:`ConfigError` line naming the key and where its value came from, before any work starts.
 
-Settings are a plain nested dict, read as ``cfg["section"]["key"]``. Every function here returns a
+Settings are one nested dict, typed section by section by :class:`ltc_cli.settings.Settings` and read
+as ``cfg["section"]["key"]``. Every function here returns a
 new one that shares nothing with its inputs, so a caller's dict is never written into: ingest builds
 its own effective copy (:func:`settings_from`) rather than editing the one it was given.
 
@@ -27,13 +28,14 @@ import jsonschema
 import yaml
 
 from ltc_cli.errors import ConfigError
+from ltc_cli.settings import Settings
 
 SCHEMA_FILE = "config.schema.json"
 # Keywords whose failure is described from the schema ("must be a number >= 0, got -3").
 _SHAPE_KEYWORDS = {"type", "enum", "minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"}
 
 
-def defaults() -> dict:
+def defaults() -> Settings:
     text = resources.files("ltc_cli").joinpath("defaults.yaml").read_text()
     return yaml.safe_load(text)
 
@@ -196,7 +198,7 @@ def _coerce(value, node: dict | None):
     return value
 
 
-def validate_config(cfg: dict, origins: dict | None = None) -> dict:
+def validate_config(cfg: dict, origins: dict | None = None) -> Settings:
     """A checked copy of ``cfg`` (numbers typed as the schema says); ConfigError naming the first bad
     key, and the file or ``--set`` item its value came from when ``origins`` says."""
     origins = origins or {}
@@ -258,7 +260,7 @@ def _read_file(path) -> dict:
     return data
 
 
-def load_config(path=None, sets: list[str] = ()) -> dict:
+def load_config(path=None, sets: list[str] = ()) -> Settings:
     """Defaults, overridden by a YAML file and then by ``--set`` items, checked by the schema."""
     cfg = defaults()
     root = _resolve(schema())
@@ -270,7 +272,7 @@ def load_config(path=None, sets: list[str] = ()) -> dict:
     return validate_config(cfg, origins)
 
 
-def settings_from(config: dict, *overrides: dict) -> dict:
+def settings_from(config: dict, *overrides: dict) -> Settings:
     """A checked copy of ``config`` with each partial mapping of ``overrides`` merged in as a file
     would be (a calibration's v_Other, say); ``config`` itself is left as it was."""
     cfg = copy.deepcopy(config)

@@ -192,3 +192,18 @@ def test_ingest_does_not_write_into_the_callers_config(tmp_path):
     row = load_map(tmp_path / "m.h5").sessions[0]
     assert row["v_other"] == 0.3
     assert json.loads(row["settings"])["maintenance"]["v_other_per_class"] == {"chair": 0.8}
+
+
+def test_the_settings_type_names_every_key_of_the_schema():
+    """ltc_cli.settings types what config.schema.json checks: the same sections and keys."""
+    from typing import get_type_hints
+
+    from ltc_cli.config import schema
+    from ltc_cli.settings import Settings
+
+    sections = get_type_hints(Settings)
+    props = schema()["properties"]
+    assert set(sections) == set(props)
+    for name, section in sections.items():
+        assert set(get_type_hints(section)) == set(props[name]["properties"]), name
+    assert set(sections) == set(defaults())

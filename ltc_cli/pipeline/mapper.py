@@ -26,6 +26,8 @@ from ltc_cli.pipeline.maintenance import (
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
+from ltc_cli.protocols import Metric, Policy
+from ltc_cli.settings import Settings
 from ltc_cli.text import plural
 from ltc_cli.types import Intrinsics
 
@@ -45,7 +47,7 @@ class FrameResult:
 class Mapper:
     """Runs the four stages of LTC-Mapping frame after frame on a :class:`SemanticMap`."""
 
-    def __init__(self, smap: SemanticMap, config: dict, metric, policy, session: int = 0):
+    def __init__(self, smap: SemanticMap, config: Settings, metric: Metric, policy: Policy, session: int = 0):
         self.map = smap
         self.cfg = config
         self.metric = metric

@@ -1,0 +1,98 @@
+"""The type of the settings every part reads: one nested mapping, built by :mod:`ltc_cli.config`
+from defaults.yaml, the user's ``--config`` and ``--set``, and checked against config.schema.json.
+
+The sections are ``TypedDict``s, so a type checker knows each key and its type while the code reads
+``settings["maintenance"]["v_other"]`` as before; a test keeps these keys equal to the schema's.
+What each setting means, and why its default, is written next to it in defaults.yaml.
+"""
+
+from __future__ import annotations
+
+from typing import Optional, TypedDict
+
+
+class ModelingSettings(TypedDict):
+    thin_max_iterations: int
+    thin_fraction: float
+    max_points: int
+    max_detections: int
+    compensate_thinning: bool
+    min_depth: float
+    max_depth: float
+    edge_jump: Optional[float]
+    clustering: str
+    eps: float
+    min_samples: int
+    min_extent: float
+    thin_extent: float
+    class_depth: dict[str, float]
+    floor_classes: list[str]
+    ground_max_gap: float
+    border: int
+    occlusion_tolerance: float
+    occlusion_window: int
+
+
+class AssociationSettings(TypedDict):
+    metric: str
+    threshold_same_class: float
+    threshold_other_class: float
+    min_visible_pairs: int
+    containment: Optional[float]
+    containment_other_class: Optional[float]
+    other_class_volume_ratio: Optional[float]
+    partial_adjoin_gap: Optional[float]
+    merge: bool
+
+
+class IntegrationSettings(TypedDict):
+    erosion: float
+    max_weight: Optional[float]
+    unassigned_score: str
+
+
+class MaintenanceSettings(TypedDict):
+    policy: str
+    v_other: float
+    v_other_per_class: dict[str, float]
+    learn_detection_rate: bool
+    nondet_min_move: Optional[float]
+    nondet_min_turn: Optional[float]
+    seen_empty_share: Optional[float]
+    v_other_seen_empty: Optional[float]
+    rate_prior: float
+    rate_prior_views: float
+    rate_score: float
+    rate_margin: float
+    min_visible_pixels: float
+    min_visible_fraction: Optional[float]
+    min_pixels_floor: float
+    min_visible_share: float
+    min_detections: int
+    min_detection_share: Optional[float]
+    ray_step: int
+    depth_tolerance: float
+
+
+class IndexSettings(TypedDict):
+    cell_size: float
+
+
+class DetectorSettings(TypedDict):
+    name: str
+    options: dict
+
+
+class MapSettings(TypedDict):
+    classes: Optional[list[str]]
+    moving_classes: list[str]
+
+
+class Settings(TypedDict):
+    modeling: ModelingSettings
+    association: AssociationSettings
+    integration: IntegrationSettings
+    maintenance: MaintenanceSettings
+    index: IndexSettings
+    detector: DetectorSettings
+    map: MapSettings
