@@ -14,11 +14,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Protocol, runtime_checkable
 
-import numpy as np
-
 from ltc_cli.types import Detection, Frame, Recording
 
-if TYPE_CHECKING:  # only for annotations: keeps this module free of the geometry imports
+if TYPE_CHECKING:  # only for annotations: keeps this module (imported by `ltc --help`) free of numpy and geometry
+    import numpy as np
+
     from ltc_cli.geometry.boxes import Boxes
 
 

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterator
 
-import numpy as np
+if TYPE_CHECKING:  # numpy only in annotations here: `ltc --help` imports this module
+    import numpy as np
 
 
 @dataclass(frozen=True)
@@ -21,6 +22,8 @@ class Intrinsics:
 
     @property
     def K(self) -> np.ndarray:
+        import numpy as np
+
         return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1.0]])
 
 
