@@ -34,7 +34,8 @@ class Detector(Protocol):
     the frame unusable (ingest reports them, and stops on them with ``--strict``).
 
     A detector whose ``detect`` keeps no state between calls may set the class attribute
-    ``thread_safe = True``; ``ingest --jobs N`` then calls it from several threads at once.
+    ``thread_safe = True``; ``ingest --jobs N`` then calls it from several threads at once. One that
+    never reads ``frame.rgb`` may set ``needs_rgb = False``: the colour image is then not decoded.
     """
 
     classes: list[str]
