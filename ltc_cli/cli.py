@@ -22,6 +22,7 @@ from ltc_cli.config import load_config
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.signals import stop_on_signals
 from ltc_cli.text import plural
+from ltc_cli.threads import mapping_threads
 
 
 class LtcGroup(click.Group):
@@ -105,7 +106,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     # The handlers go in before anything slow (imports, reading settings, opening recordings), so
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
-    with stop_on_signals() as stop:
+    with stop_on_signals() as stop, mapping_threads(jobs):
         from ltc_cli.ingest.session import ingest as run_ingest
         from ltc_cli.recordings.open import count_frames
         from ltc_cli.tools.calibration_file import load_calibration
@@ -380,7 +381,7 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
     if detector:
         cfg["detector"]["name"] = detector
     r_opts = reader_options(reader_opts)
-    with _progress("calibrate", lambda: count_frames([recording], reader, r_opts)) as progress:
+    with _progress("calibrate", lambda: count_frames([recording], reader, r_opts)) as progress, mapping_threads():
         cal = calibrate(
             recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader, reader_options=r_opts,
             min_visible_pixels=cfg["maintenance"]["min_visible_pixels"], min_pixels=min_pixels,
