@@ -35,11 +35,13 @@ def mapping_threads(jobs: int = 1):
     """While mapping with ``jobs`` detecting threads: one BLAS thread, and detectors built inside
     see :func:`threads_per_job` = cores // jobs."""
     global _jobs
-    # threadpoolctl limits the BLAS libraries already loaded: numpy's is loaded first. (A BLAS
-    # loaded later, e.g. scipy's own OpenBLAS, is held to one thread in the CLI by the
-    # OPENBLAS_NUM_THREADS default that ltc_cli.cli.main sets.) Imported here so that the commands
-    # that map nothing do not pay for it.
+    # threadpoolctl limits the BLAS libraries already loaded, and numpy, scipy and OpenCV each
+    # bring their own OpenBLAS: all three are loaded first (a mapping run needs them anyway). In
+    # the CLI, the OPENBLAS_NUM_THREADS default that ltc_cli.cli.main sets covers any other. These
+    # imports are here so that the commands that map nothing do not pay for them.
+    import cv2  # noqa: F401
     import numpy  # noqa: F401
+    import scipy.spatial.transform  # noqa: F401
     from threadpoolctl import threadpool_limits
 
     before = _jobs

@@ -26,7 +26,7 @@ def test_threads_per_job_divides_the_cores_among_the_jobs(jobs):
     assert threads.threads_per_job() == n  # outside an ingest: every core
     with threads.mapping_threads(jobs):
         assert threads.threads_per_job() == max(1, n // jobs)
-        assert blas_threads() and set(blas_threads()) == {1}
+        assert len(blas_threads()) >= 3 and set(blas_threads()) == {1}  # numpy's, scipy's and OpenCV's
         assert float(np.ones((64, 64)) @ np.ones(64) @ np.ones(64)) == 64.0 * 64  # BLAS still works
     assert threads.threads_per_job() == n
 
