@@ -7,6 +7,8 @@ click does); ``--debug`` shows the traceback instead.
 from __future__ import annotations
 
 import json
+import math
+import os
 import signal
 import sys
 from collections import Counter
@@ -14,13 +16,13 @@ from contextlib import contextmanager
 from typing import Callable
 
 import click
-import numpy as np
 
 from ltc_cli import __version__, plugins
 from ltc_cli.config import load_config
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.signals import stop_on_signals
 from ltc_cli.text import plural
+from ltc_cli.threads import mapping_threads
 
 
 class LtcGroup(click.Group):
@@ -114,7 +116,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
     if dask_spec and jobs > 1:
         raise click.UsageError("--jobs and --dask: give one (with --dask the workers run ahead)")
-    with stop_on_signals() as stop:
+    with stop_on_signals() as stop, mapping_threads(jobs):
         from ltc_cli.ingest.cluster import cluster_for
         from ltc_cli.ingest.session import ingest as run_ingest
         from ltc_cli.recordings.open import count_frames
@@ -183,6 +185,8 @@ def ingest_many(manifest, dask_spec, dask_batch, writers, checkpoint_every, stri
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
 def info(map_path, fmt):
     """Summarise a map: classes, objects, sessions, frames."""
+    import numpy as np
+
     from ltc_cli.map.model import ACTIVE, MERGED, REMOVED
     from ltc_cli.map.store import FORMAT, VERSION, load_map, orphan_temp_files
 
@@ -257,7 +261,7 @@ def _floats(text, n_allowed, what, param):
         vals = [float(v) for v in str(text).split(",")]
     except ValueError:
         vals = []
-    if len(vals) not in n_allowed or not all(np.isfinite(vals)):
+    if len(vals) not in n_allowed or not all(math.isfinite(v) for v in vals):
         raise click.BadParameter(f"expected {what}, not {text!r}", param_hint=param)
     return vals
 
@@ -282,7 +286,7 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
     point = _floats(near, (2, 3), "X,Y or X,Y,Z", "--near") if near is not None else None
     if (point is None) != (radius is None):
         raise click.UsageError("--near and --radius go together")
-    if radius is not None and not (np.isfinite(radius) and radius >= 0):
+    if radius is not None and not (math.isfinite(radius) and radius >= 0):
         raise click.BadParameter(f"must be >= 0, not {radius}", param_hint="--radius")
     smap = load_map(map_path)
     spec = q.Query(classes=classes, near=point, radius=radius, min_confidence=min_confidence, ids=ids, removed=removed)
@@ -414,7 +418,7 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
     if detector:
         cfg["detector"]["name"] = detector
     r_opts = reader_options(reader_opts)
-    with _progress("calibrate", lambda: count_frames([recording], reader, r_opts)) as progress:
+    with _progress("calibrate", lambda: count_frames([recording], reader, r_opts)) as progress, mapping_threads():
         cal = calibrate(
             recording, cfg["detector"]["name"], dict(cfg["detector"]["options"]), reader=reader, reader_options=r_opts,
             min_visible_pixels=cfg["maintenance"]["min_visible_pixels"], min_pixels=min_pixels,
@@ -440,6 +444,11 @@ from ltc_cli import cli_views  # noqa: E402,F401
 
 
 def main():
+    # One BLAS thread unless the user says otherwise: ltc's matrix products are small (the YOLO
+    # masks, 3x3 rotations), and OpenBLAS's idle workers spin between them (+45 % CPU on a
+    # real-detector ingest) and cost ~0.07 s CPU at start-up. Only effective before numpy is first
+    # imported, which this module does not do; the ingest also limits them through threadpoolctl.
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     cli(prog_name="ltc")
 
 

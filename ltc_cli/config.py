@@ -24,7 +24,6 @@ from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
-import jsonschema
 import yaml
 
 from ltc_cli.errors import ConfigError
@@ -53,10 +52,16 @@ def _is_finite_number(checker, value) -> bool:
             and math.isfinite(value))
 
 
-_Validator = jsonschema.validators.extend(
-    jsonschema.Draft202012Validator,
-    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine("number", _is_finite_number),
-)
+@lru_cache(maxsize=None)
+def _validator_class():
+    # jsonschema is imported here, not at the top: it costs ~0.06 s CPU, and `ltc --help`, `info`
+    # and `query` import this module without ever validating settings.
+    import jsonschema
+
+    return jsonschema.validators.extend(
+        jsonschema.Draft202012Validator,
+        type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine("number", _is_finite_number),
+    )
 
 
 # -- walking the schema ---------------------------------------------------------------------------
@@ -202,7 +207,9 @@ def validate_config(cfg: dict, origins: dict | None = None) -> Settings:
     """A checked copy of ``cfg`` (numbers typed as the schema says); ConfigError naming the first bad
     key, and the file or ``--set`` item its value came from when ``origins`` says."""
     origins = origins or {}
-    error = jsonschema.exceptions.best_match(_Validator(schema()).iter_errors(cfg))
+    from jsonschema.exceptions import best_match
+
+    error = best_match(_validator_class()(schema()).iter_errors(cfg))
     if error is not None:
         path, line = _describe(error)
         raise ConfigError(line, _origin_of(path, origins))

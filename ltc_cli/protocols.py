@@ -14,11 +14,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Protocol, runtime_checkable
 
-import numpy as np
-
 from ltc_cli.types import Detection, Frame, Recording
 
-if TYPE_CHECKING:  # only for annotations: keeps this module free of the geometry imports
+if TYPE_CHECKING:  # only for annotations: keeps this module (imported by `ltc --help`) free of numpy and geometry
+    import numpy as np
+
     from ltc_cli.geometry.boxes import Boxes
 
 
@@ -34,7 +34,8 @@ class Detector(Protocol):
     the frame unusable (ingest reports them, and stops on them with ``--strict``).
 
     A detector whose ``detect`` keeps no state between calls may set the class attribute
-    ``thread_safe = True``; ``ingest --jobs N`` then calls it from several threads at once.
+    ``thread_safe = True``; ``ingest --jobs N`` then calls it from several threads at once. One that
+    never reads ``frame.rgb`` may set ``needs_rgb = False``: the colour image is then not decoded.
     """
 
     classes: list[str]

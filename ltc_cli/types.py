@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterator
 
-import numpy as np
+if TYPE_CHECKING:  # numpy only in annotations here: `ltc --help` imports this module
+    import numpy as np
 
 
 @dataclass(frozen=True)
@@ -21,6 +22,8 @@ class Intrinsics:
 
     @property
     def K(self) -> np.ndarray:
+        import numpy as np
+
         return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1.0]])
 
 
@@ -30,7 +33,9 @@ class Frame:
 
     depth_m: (H, W) float32 metres, 0 where there is no reading.
     T_world_camera: (4, 4) camera-to-world pose in the recording's world frame.
-    rgb: (H, W, 3) uint8, or None when a detector does not need it.
+    rgb: (H, W, 3) uint8, or None when a detector does not need it. A reader may instead give
+        ``rgb_loader``: the colour image is then decoded on the first read of ``frame.rgb`` (a
+        detector that never looks at colour, like ``recorded``, never pays for decoding it).
     warnings: problems found while loading or detecting that leave the frame usable (ingest reports
         each one, or stops on it with ``--strict``).
     """
@@ -45,6 +50,25 @@ class Frame:
     depth_path: str | None = None
     extra: dict = field(default_factory=dict)
     warnings: list[FrameWarning] = field(default_factory=list)
+    rgb_loader: Callable[[], np.ndarray] | None = field(default=None, repr=False, compare=False)
+
+
+def _frame_rgb(frame: Frame):
+    if frame._rgb is None and frame.rgb_loader is not None:
+        # Decoded once, then kept (and the loader dropped): FrameError propagates to whoever asked,
+        # which in an ingest is the detector, so a bad colour image still skips the frame.
+        frame._rgb = frame.rgb_loader()
+        frame.rgb_loader = None
+    return frame._rgb
+
+
+def _set_frame_rgb(frame: Frame, value) -> None:
+    frame._rgb = value
+
+
+# ``rgb`` stays a dataclass field (Frame(rgb=...) and its default work as before); the property
+# installed after the class is built makes its first read decode the image from ``rgb_loader``.
+Frame.rgb = property(_frame_rgb, _set_frame_rgb)
 
 
 @dataclass(frozen=True)

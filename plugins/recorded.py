@@ -35,6 +35,9 @@ OPTIONS_SCHEMA = {
 class RecordedDetector:
     # detect() only reads files, so ingest --jobs may run it on several frames at once.
     thread_safe = True
+    # The detections are read from files: the frame's colour image is never decoded (Frame.rgb).
+    needs_rgb = False
+
     def __init__(self, folder: Path, classes: list[str]):
         self.folder = folder
         self.classes = classes

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 HALF_PI = np.pi / 2
 
@@ -116,6 +115,10 @@ def convex_hull_xy(xy: np.ndarray) -> np.ndarray:
     # from above. qhull would refuse it, and its exception costs more than this test.
     evals, evecs = np.linalg.eigh(d.T @ d)
     if len(xy) >= 3 and evals[0] > 1e-12 * max(evals[1], 1e-300):
+        # scipy.spatial is imported here (a no-op after the first call): at the top it would cost
+        # every command that loads a map ~0.25 s of start-up.
+        from scipy.spatial import ConvexHull, QhullError
+
         try:
             hull = ConvexHull(xy)
             return xy[hull.vertices]  # qhull gives 2-D hulls counter-clockwise

@@ -20,7 +20,7 @@ import numpy as np
 
 from ltc_cli.errors import FrameError, RecordingError
 from ltc_cli.geometry.camera import backproject, rotation_between, transform
-from ltc_cli.types import Recording
+from ltc_cli.types import FrameRef, Recording
 
 # Planes whose normal is further than this from the cameras' guess are walls or slopes, never floor.
 MAX_TILT_FROM_GUESS_DEG = 30.0
@@ -238,15 +238,33 @@ def estimate_floor_z(points_z: np.ndarray, band: float = 0.05, min_share: float 
     return float(np.median(z[near]))
 
 
+def _hand_out_once(frame, load):
+    """A FrameRef.load that returns ``frame`` (already loaded) the first time, then loads anew."""
+    box = [frame]
+
+    def load_once():
+        return box.pop() if box else load()
+
+    return load_once
+
+
 def _sample_frames(rec: Recording, n: int) -> list:
-    """Up to n readable frames spread over the recording."""
+    """Up to n readable frames spread over the recording.
+
+    Each sampled frame's ref in ``rec.frames`` is replaced by one that hands this loaded frame out
+    on its next load, so that the ingest (or the rrd export) after the set-up does not decode these
+    frames a second time."""
     step = max(1, len(rec.frames) // n)
     out = []
-    for ref in rec.frames[::step][:n]:
+    for i in range(0, len(rec.frames), step)[:n]:
+        ref = rec.frames[i]
         try:
-            out.append(ref.load())
+            frame = ref.load()
         except FrameError:
             continue
+        out.append(frame)
+        if isinstance(rec.frames, list):
+            rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load))
     return out
 
 

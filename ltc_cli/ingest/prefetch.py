@@ -13,9 +13,16 @@ def load_and_detect(det, lock=None):
     """fetch(ref) -> (frame, detections, t0, t1, t2): load the frame (t0 -> t1), then detect (t1 ->
     t2); FrameError propagates. With a lock, ``detect`` runs under it and the wait is not timed."""
 
+    # Readers may leave the colour image to be decoded on first use (Frame.rgb): a detector that
+    # says it needs no colour (``needs_rgb = False``, like ``recorded``) never decodes it; for the
+    # others it is decoded here, in the loading time and outside the detector's lock.
+    needs_rgb = getattr(det, "needs_rgb", True)
+
     def fetch(ref):
         t0 = time.perf_counter()
         frame = ref.load()
+        if needs_rgb:
+            frame.rgb  # noqa: B018  (the read decodes it)
         t1 = time.perf_counter()
         if lock is None:
             dets = det.detect(frame)

@@ -21,7 +21,7 @@ from PIL import Image
 
 from ltc_cli.errors import ConfigError, FrameError, RecordingError
 from ltc_cli.geometry.camera import is_rotation, pose_matrix
-from ltc_cli.recordings.images import load_depth, load_rgb
+from ltc_cli.recordings.images import check_rgb, load_depth, load_rgb
 from ltc_cli.types import Frame, FrameRef, Intrinsics
 from ltc_cli.validation import check_options
 
@@ -316,19 +316,28 @@ def load_frame(src: FrameSource, index: int, fmt: ImageFormat) -> Frame:
     intr = fmt.intrinsics
     T_world_camera = src.pose()
     depth_m = load_depth(src.depth_path, fmt.depth_scale, intr.width, intr.height, invalid_raw=fmt.invalid_raw)
+    # The colour image's header is checked now (a missing or wrong image skips the frame whatever
+    # the detector); its pixels are decoded when a detector first reads frame.rgb.
     if fmt.resize_rgb:
-        rgb = load_rgb(src.rgb_path)
-        if rgb.shape[:2] != (intr.height, intr.width):
-            rgb = np.asarray(Image.fromarray(rgb).resize((intr.width, intr.height), Image.BILINEAR))
+        check_rgb(src.rgb_path)
+
+        def rgb_loader() -> np.ndarray:
+            rgb = load_rgb(src.rgb_path)
+            if rgb.shape[:2] != (intr.height, intr.width):
+                rgb = np.asarray(Image.fromarray(rgb).resize((intr.width, intr.height), Image.BILINEAR))
+            return rgb
     else:
-        rgb = load_rgb(src.rgb_path, intr.width, intr.height)
+        check_rgb(src.rgb_path, intr.width, intr.height)
+
+        def rgb_loader() -> np.ndarray:
+            return load_rgb(src.rgb_path, intr.width, intr.height)
     return Frame(
         key=src.key,
         index=index,
         depth_m=depth_m,
         T_world_camera=T_world_camera,
         intrinsics=intr,
-        rgb=rgb,
+        rgb_loader=rgb_loader,
         rgb_path=str(src.rgb_path),
         depth_path=str(src.depth_path),
         extra=dict(src.extra),

@@ -1,0 +1,210 @@
+"""Speed of everything around the four stages (issue 11), in one run:
+
+1. a whole ``ltc ingest`` of a simulated 640x480 lap (recorded detector; the process's CPU time,
+   start-up included) per frame, vs a loop that only decodes the lap's depth and colour images
+   (OpenCV, and Pillow as ltc decoded before) per frame: the ratio;
+2. start-up CPU of ``ltc --help`` and ``ltc info MAP`` (median of ``--repeat`` runs);
+3. detector ms per frame (wall and CPU, one intra-op thread) of the shared YOLOv8n-seg int8 and
+   fp32 models on real TUM frames, for each execution provider available: cpu, and openvino when
+   this Python has onnxruntime-openvino or ``--openvino-python`` names one that has;
+4. end-to-end ``ltc ingest`` of the 232 real tum-fr1-rpy frames with the fp32 model, ``--jobs 1``
+   and ``--jobs 2``: frames/s (wall) and CPU ms per frame.
+
+``--baseline CMD`` runs items 1, 2 and 4 with another ltc too (e.g. a checkout of an older commit:
+``--baseline "env PYTHONPATH=/tmp/old python -c 'from ltc_cli.cli import main; main()'"``), in the
+same run, so that before and after meet the same machine load. CPU times are user + system of the
+child process (resource.getrusage), so other engineers' work on a shared machine changes the wall
+times more than these.
+
+    python benchmarks/bench_speed.py [--sim DIR] [--frames 30] [--repeat 7] [--baseline CMD]
+                                     [--openvino-python PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import shlex
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+# ../shared beside the checkout (a worktree under wt/ has it two levels up)
+SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
+MODELS = {"int8": SHARED / "models" / "yolov8n-seg_int8.onnx", "fp32": SHARED / "models" / "yolov8n-seg_fp32.onnx"}
+TUM = SHARED / "data" / "tum-fr1-rpy"
+LTC = [sys.executable, "-c", "import sys; sys.argv[0] = 'ltc'; from ltc_cli.cli import main; main()"]
+
+
+def run_cpu(cmd: list[str], env: dict | None = None) -> tuple[float, float, str]:
+    """(CPU s, wall s, stdout) of one child process; raises if it fails."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise SystemExit(f"{shlex.join(cmd)} failed:\n{done.stderr}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return cpu, wall, done.stdout
+
+
+# -- 1. whole ingest vs decoding ------------------------------------------------------------------
+
+def decode_only(lap: Path) -> dict:
+    """CPU ms per frame of decoding every depth and colour image of the lap (no ltc code)."""
+    import cv2
+    import numpy as np
+    from PIL import Image
+
+    def cpu() -> float:
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        return r.ru_utime + r.ru_stime
+
+    depth = sorted((lap / "depth").iterdir())
+    rgb = sorted((lap / "rgb").iterdir())
+    out = {}
+    for name, read_depth, read_rgb in [
+        ("opencv", lambda p: cv2.imread(str(p), cv2.IMREAD_UNCHANGED), lambda p: cv2.imread(str(p), cv2.IMREAD_UNCHANGED)),
+        ("pillow", lambda p: np.asarray(Image.open(p)), lambda p: np.asarray(Image.open(p).convert("RGB"))),
+    ]:
+        c0 = cpu()
+        for p in depth:
+            read_depth(p)
+        c1 = cpu()
+        for p in rgb:
+            read_rgb(p)
+        c2 = cpu()
+        out[name] = {"depth": (c1 - c0) / len(depth) * 1e3, "both": (c2 - c0) / len(depth) * 1e3}
+    return out
+
+
+def whole_ingest(ltc: list[str], lap: Path, tmp: Path, tag: str) -> float:
+    m = tmp / f"sim-{tag}.h5"
+    m.unlink(missing_ok=True)
+    cpu, _, _ = run_cpu([*ltc, "ingest", str(lap), "--map", str(m)])
+    return cpu / len(list((lap / "depth").iterdir())) * 1e3
+
+
+# -- 2. start-up ----------------------------------------------------------------------------------
+
+def startup(ltc: list[str], args: list[str], repeat: int) -> float:
+    return statistics.median(run_cpu([*ltc, *args])[0] for _ in range(repeat))
+
+
+# -- 3. detector alone ----------------------------------------------------------------------------
+
+DETECTOR_PROBE = """
+import json, resource, sys, time
+from ltc_cli.recordings.open import open_recording
+from ltc_cli.errors import LtcError
+from ltc_cli.threads import mapping_threads
+from ltc_plugins.onnx.yolo_seg import YoloSegDetector
+model, provider, tum, n = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+limits = mapping_threads(1)
+limits.__enter__()  # one BLAS thread, as in an ingest (kept referenced: dropping it would exit)
+try:
+    det = YoloSegDetector.from_options(None, {"model": model, "provider": provider, "threads": 1})
+except LtcError as exc:
+    print(json.dumps({"error": str(exc).splitlines()[0]}))
+    raise SystemExit(0)
+rec = open_recording(tum)
+frames = [ref.load() for ref in rec.frames[: n + 3]]
+for f in frames:
+    f.rgb
+def cpu():
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+for f in frames[:3]:
+    det.detect(f)  # warm-up (OpenVINO compiles the model on the first run)
+c0, t0 = cpu(), time.perf_counter()
+for f in frames[3:]:
+    det.detect(f)
+print(json.dumps({"wall": (time.perf_counter() - t0) / n * 1e3, "cpu": (cpu() - c0) / n * 1e3}))
+"""
+
+
+def detector_ms(python: list[str], model: Path, provider: str, n: int) -> dict:
+    _, _, out = run_cpu([*python, "-c", DETECTOR_PROBE, str(model), provider, str(TUM), str(n)])
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def has_openvino(python: list[str]) -> bool:
+    probe = "import ltc_cli, onnxruntime as o; print('OpenVINOExecutionProvider' in o.get_available_providers())"
+    done = subprocess.run([*python, "-c", probe], capture_output=True, text=True)
+    return done.returncode == 0 and done.stdout.strip() == "True"
+
+
+# -- 4. end to end --------------------------------------------------------------------------------
+
+def end_to_end(ltc: list[str], jobs: int, tmp: Path, tag: str) -> tuple[float, float]:
+    m = tmp / f"tum-{tag}-j{jobs}.h5"
+    m.unlink(missing_ok=True)
+    cpu, wall, out = run_cpu([*ltc, "ingest", str(TUM), "--map", str(m), "--detector", "onnx-yolo-seg",
+                              "--set", f"detector.options.model={MODELS['fp32']}", "--jobs", str(jobs)])
+    n = int(out.split(":")[1].split("frames ingested")[0])
+    return n / wall, cpu / n * 1e3
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--sim", type=Path, help="a simulated lap folder to reuse (default: simulate one, ~20 s)")
+    ap.add_argument("--frames", type=int, default=30, help="TUM frames timed per detector figure")
+    ap.add_argument("--repeat", type=int, default=7, help="start-up runs (median)")
+    ap.add_argument("--baseline", help="another ltc command line to measure items 1, 2 and 4 with")
+    ap.add_argument("--openvino-python", metavar="CMD",
+                    help="a Python command line with onnxruntime-openvino that imports ltc_cli and ltc_plugins, "
+                         "e.g. \"env PYTHONPATH=/tmp/ltc-tree /tmp/ov-venv/bin/python\"")
+    args = ap.parse_args()
+    ltcs = {"now": LTC}
+    if args.baseline:
+        ltcs = {"baseline": shlex.split(args.baseline), **ltcs}
+    with tempfile.TemporaryDirectory(prefix="bench-speed-") as tmp_name:
+        tmp = Path(tmp_name)
+        lap = args.sim
+        if lap is None:
+            run_cpu([*LTC, "simulate", str(tmp / "sim"), "--scene", "small", "--laps", "1", "--seed", "0"])
+            lap = tmp / "sim" / "lap1"
+        n_lap = len(list((lap / "depth").iterdir()))
+        print(f"1. simulated 640x480 lap ({n_lap} frames, recorded detector): CPU ms per frame")
+        dec = decode_only(lap)
+        for name in ("opencv", "pillow"):
+            print(f"   decode only, {name:<7}: depth {dec[name]['depth']:6.2f}, depth + colour {dec[name]['both']:6.2f}")
+        for tag, ltc in ltcs.items():
+            ms = whole_ingest(ltc, lap, tmp, tag)
+            print(f"   whole ingest, {tag:<8}: {ms:6.2f}  = {ms / dec['opencv']['both']:.2f}x decode (OpenCV, depth + colour), "
+                  f"{ms / dec['pillow']['both']:.2f}x (Pillow)")
+        print(f"2. start-up, median CPU s of {args.repeat} runs")
+        info_map = tmp / "sim-now.h5"
+        for tag, ltc in ltcs.items():
+            print(f"   {tag:<8}: ltc --help {startup(ltc, ['--help'], args.repeat):.3f}, "
+                  f"ltc info {startup(ltc, ['info', str(info_map)], args.repeat):.3f}")
+        print(f"3. detector alone, ms per frame on {args.frames} TUM frames (1 intra-op thread): wall / CPU")
+        pythons = {"cpu": [sys.executable]}
+        ov = shlex.split(args.openvino_python) if args.openvino_python else [sys.executable]
+        if has_openvino(ov):
+            pythons["openvino"] = ov
+        else:
+            print("   openvino: not available (no onnxruntime-openvino in this Python; see --openvino-python)")
+        for provider, python in pythons.items():
+            for name, model in MODELS.items():
+                r = detector_ms(python, model, provider, args.frames)
+                if "error" in r:
+                    print(f"   {name:<4} {provider:<8}: fails: {r['error'][-150:]}")
+                    continue
+                print(f"   {name:<4} {provider:<8}: {r['wall']:6.1f} / {r['cpu']:6.1f}")
+        n_tum = len(list((TUM / "rgb").iterdir()))
+        print(f"4. end to end, tum-fr1-rpy ({n_tum} frames), fp32 model: frames/s (wall), CPU ms per frame")
+        for tag, ltc in ltcs.items():
+            for jobs in (1, 2):
+                fps, ms = end_to_end(ltc, jobs, tmp, tag)
+                print(f"   {tag:<8} --jobs {jobs}: {fps:5.1f} frames/s, {ms:5.1f} ms CPU per frame")
+
+
+if __name__ == "__main__":
+    main()
