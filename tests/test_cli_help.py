@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from click.testing import CliRunner
 
-from ltc_cli.cli import SIMULATE_OPTIONS_HELP, cli
+from ltc_cli.cli import cli
+from ltc_cli.cli_tools import SIMULATE_OPTIONS_HELP
 from ltc_cli.tools.simulate import DEFAULTS, simulate
 
 
