@@ -120,18 +120,59 @@ class GridIndex:
 
     Per-frame queries touch only the cells around the camera, so the cost of a frame does not grow
     with the number of objects elsewhere in the map.
+
+    Two parts answer a query together: the objects a session starts with, indexed at once by
+    :meth:`build` into sorted numpy arrays (cell code -> rows, a 100k-object map in tens of ms where
+    a Python loop took 1.6 s), and the objects inserted since, in a dict of sets. Inserting or
+    removing a row takes it out of the arrays' part (a mask), so each row is in one part only.
     """
+
+    # Cells are coded i * 2**32 + (j + 2**31) in int64: grid coordinates beyond +-2**31 cells (the
+    # 2 m cells put that at 4 million km) go to the dict part instead.
+    _SPAN = 1 << 31
 
     def __init__(self, cell: float):
         self.cell = float(cell)
         self.cells: dict[tuple, set] = defaultdict(set)
         self.where: dict[int, list] = {}
+        self.base_codes = np.zeros(0, np.int64)  # sorted cell codes, one per (cell, row) pair
+        self.base_rows = np.zeros(0, np.int64)
+        self.base_live = np.zeros(0, bool)  # by row: still indexed in the arrays' part
 
     def _cells_of(self, center, size):
         r = 0.5 * float(np.hypot(size[0], size[1]))
         i0, i1 = int(np.floor((center[0] - r) / self.cell)), int(np.floor((center[0] + r) / self.cell))
         j0, j1 = int(np.floor((center[1] - r) / self.cell)), int(np.floor((center[1] + r) / self.cell))
         return [(i, j) for i in range(i0, i1 + 1) for j in range(j0, j1 + 1)]
+
+    def build(self, rows, centers_xyz, sizes_xyz) -> None:
+        """Index ``rows`` (K,) with their centres and sizes (K, 3) at once, as if each were
+        :meth:`insert`-ed (same cells, same query answers). For an empty index only."""
+        rows = np.asarray(rows, dtype=np.int64)
+        centers_xyz, sizes_xyz = np.asarray(centers_xyz, np.float64), np.asarray(sizes_xyz, np.float64)
+        # The same float operations as _cells_of, element by element, so the same cells.
+        r = 0.5 * np.hypot(sizes_xyz[:, 0], sizes_xyz[:, 1])
+        ij0 = np.floor((centers_xyz[:, :2] - r[:, None]) / self.cell)
+        ij1 = np.floor((centers_xyz[:, :2] + r[:, None]) / self.cell)
+        fits = (np.isfinite(ij0).all(1) & np.isfinite(ij1).all(1) & (np.abs(ij0) < self._SPAN).all(1)
+                & (np.abs(ij1) < self._SPAN).all(1))
+        for k in np.flatnonzero(~fits):  # far outside any real map: the dict part takes them
+            self.insert(int(rows[k]), centers_xyz[k], sizes_xyz[k])
+        rows, ij0, ij1 = rows[fits], ij0[fits].astype(np.int64), ij1[fits].astype(np.int64)
+        ni, nj = ij1[:, 0] - ij0[:, 0] + 1, ij1[:, 1] - ij0[:, 1] + 1
+        count = ni * nj
+        owner = np.repeat(np.arange(len(rows)), count)
+        k = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)  # cell number in its box
+        i = ij0[owner, 0] + k // nj[owner]
+        j = ij0[owner, 1] + k % nj[owner]
+        codes = self._code(i, j)
+        order = np.lexsort((rows[owner], codes))
+        self.base_codes, self.base_rows = codes[order], rows[owner][order]
+        self.base_live = np.zeros(int(rows.max()) + 1 if len(rows) else 0, bool)
+        self.base_live[rows] = True
+
+    def _code(self, i, j):
+        return np.asarray(i, np.int64) * (1 << 32) + (np.asarray(j, np.int64) + self._SPAN)
 
     def insert(self, row: int, center, size) -> None:
         self.remove(row)
@@ -141,6 +182,8 @@ class GridIndex:
         self.where[row] = cells
 
     def remove(self, row: int) -> None:
+        if row < len(self.base_live):
+            self.base_live[row] = False
         for key in self.where.pop(row, ()):
             bucket = self.cells.get(key)
             if bucket is not None:
@@ -149,14 +192,30 @@ class GridIndex:
                     del self.cells[key]
 
     def query(self, xmin, xmax, ymin, ymax) -> np.ndarray:
+        i0, i1 = int(np.floor(xmin / self.cell)), int(np.floor(xmax / self.cell))
+        j0, j1 = int(np.floor(ymin / self.cell)), int(np.floor(ymax / self.cell))
         found: set = set()
-        for i in range(int(np.floor(xmin / self.cell)), int(np.floor(xmax / self.cell)) + 1):
-            for j in range(int(np.floor(ymin / self.cell)), int(np.floor(ymax / self.cell)) + 1):
-                bucket = self.cells.get((i, j))
-                if bucket:
-                    found |= bucket
+        if self.cells:
+            for i in range(i0, i1 + 1):
+                for j in range(j0, j1 + 1):
+                    bucket = self.cells.get((i, j))
+                    if bucket:
+                        found |= bucket
+        parts = [np.fromiter(found, np.int64, len(found))]
+        if len(self.base_codes):
+            # Per grid column i, the cells j0..j1 are one run of codes.
+            i = np.arange(max(i0, -self._SPAN + 1), min(i1, self._SPAN - 1) + 1)
+            j0c, j1c = max(j0, -self._SPAN), min(j1, self._SPAN - 1)
+            if len(i) and j0c <= j1c:
+                lo = np.searchsorted(self.base_codes, self._code(i, j0c), "left")
+                hi = np.searchsorted(self.base_codes, self._code(i, j1c), "right")
+                n = hi - lo
+                if n.sum():
+                    at = np.repeat(lo - (np.cumsum(n) - n), n) + np.arange(int(n.sum()))
+                    rows = self.base_rows[at]
+                    parts.append(rows[self.base_live[rows]])
         # Sorted, so that the order of candidates (and so the map) never depends on set order.
-        return np.array(sorted(found), dtype=np.int64)
+        return np.unique(np.concatenate(parts))
 
 
 @dataclass

@@ -55,8 +55,8 @@ class Mapper:
         self.session = session
         self.index = GridIndex(config["index"]["cell_size"])
         t = smap.objects
-        for row in smap.active_rows():
-            self.index.insert(int(row), t.center[row], t.size[row])
+        active = smap.active_rows()
+        self.index.build(active, t.center[active], t.size[active])
         self.flags = ClassFlags.from_settings(smap.classes, config)
         m_cfg = config["maintenance"]
         self.confirmed = max(1, int(m_cfg["min_detections"]))
