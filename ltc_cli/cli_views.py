@@ -50,14 +50,16 @@ def export_cmd(map_path, fmt, output, origin):
             geo_origin = ex.parse_origin(origin)
         except ex.ExportError as exc:
             raise click.BadParameter(exc.message, param_hint="--origin") from None
+    from ltc_cli.map.export_stream import export_chunks, write_export
+
     smap = load_map(map_path)
-    doc = ex.export_json(smap, map_path) if fmt == "json" else ex.export_geojson(smap, geo_origin, map_path)
-    text = ex.dumps(doc)
+    chunks = export_chunks(smap, fmt, geo_origin, map_path)
     if output:
-        ex.write_atomic(output, text)
+        write_export(output, chunks)
     else:
-        click.echo(text, nl=False)
-    n = len(doc["objects"] if fmt == "json" else doc["features"])
+        for chunk in chunks:
+            click.echo(chunk, nl=False)
+    n = len(smap.active_rows())
     crs = "" if fmt == "json" else (" (WGS84 lon/lat)" if geo_origin else
                                      " (local metres, not lon/lat: give --origin LAT,LON for GIS tools)")
     click.echo(f"{map_path}: {plural(n, 'object')} exported as {fmt}{crs} to {output or 'stdout'}", err=True)

@@ -184,3 +184,13 @@ def _reserve(fd: int, size: int) -> None:
 def write_text_atomic(path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically. Raises OSError."""
     write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_chunks_atomic(path, chunks) -> None:
+    """Write the byte strings ``chunks`` (any iterable, consumed once) as the new ``path``
+    atomically, without holding them all: the size is not known up front, so a full disk shows as
+    an OSError (ENOSPC) part-way, after which the temporary file is gone and ``path`` as it was."""
+    with atomic_target(path) as tmp:
+        with open(tmp, "wb") as fh:
+            for chunk in chunks:
+                fh.write(chunk)

@@ -1,5 +1,5 @@
 """The grid index built at once (numpy) answers every query exactly as the one-object-at-a-time
-index did, also after inserts and removals mixed in; the reference below is that index, verbatim."""
+index did, also after inserts and removals mixed in; the reference below is that index."""
 
 from __future__ import annotations
 
@@ -33,12 +33,10 @@ class LoopGridIndex:
         self.where[row] = cells
 
     def remove(self, row):
-        for key in self.where.pop(row, ()):
-            bucket = self.cells.get(key)
-            if bucket is not None:
-                bucket.discard(row)
-                if not bucket:
-                    del self.cells[key]
+        for key in self.where.pop(row, ()):  # every cell listed in where holds the row
+            self.cells[key].discard(row)
+            if not self.cells[key]:
+                del self.cells[key]
 
     def query(self, xmin, xmax, ymin, ymax):
         found = set()

@@ -51,9 +51,9 @@ WGS84_A = 6378137.0
 WGS84_F = 1.0 / 298.257223563
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
 
-_DEG_DECIMALS = 9    # 1e-9 deg ~ 0.11 mm of latitude
-_METRE_DECIMALS = 4  # 0.1 mm, the same resolution in local coordinates
-_VALUE_DECIMALS = 6  # metres / radians / probabilities in properties and the JSON export
+DEG_DECIMALS = 9    # 1e-9 deg ~ 0.11 mm of latitude
+METRE_DECIMALS = 4  # 0.1 mm, the same resolution in local coordinates
+VALUE_DECIMALS = 6  # metres / radians / probabilities in properties and the JSON export
 
 
 #: Written into local-metre GeoJSON: RFC 7946 readers (QGIS, geojson.io, ...) take every position as
@@ -202,10 +202,12 @@ def export_json(smap: SemanticMap, map_path=None) -> dict:
     Each object: id, class, confidence, scores {class: p, ..., other: p}, center [x, y, z] (m, map
     frame), yaw (rad about z), size [sx, sy, sz] (m), corners (8 x [x, y, z]; bottom ring 0-3
     counter-clockwise from above, then the top ring), visible (8 bools), defined, n_det, n_nondet,
-    first_seen / last_seen {session, frame}.
+    first_seen / last_seen {session, frame}. (:mod:`ltc_cli.map.export_stream` writes the same as
+    text, streamed.)
     """
     with paused_gc():
-        return _export_json(smap, map_path)
+        cols = json_columns(smap)
+        return {**json_head(smap, map_path), "objects": _json_objects(cols, smap.class_vector_names)}
 
 
 def export_geojson(smap: SemanticMap, origin=None, map_path=None) -> dict:
@@ -221,30 +223,45 @@ def export_geojson(smap: SemanticMap, origin=None, map_path=None) -> dict:
     of the box's own x axis in [0, 180) (a box is the same after a half turn).
     """
     with paused_gc():
-        return _export_geojson(smap, origin, map_path)
+        cols = geojson_columns(smap, origin)
+        features = _geojson_features(cols, smap.class_vector_names)
+        return geojson_head(smap, origin, map_path, cols["bbox"], features)
 
 
-def _export_json(smap: SemanticMap, map_path=None) -> dict:
+def json_columns(smap: SemanticMap) -> dict:
+    """The values of the JSON export's objects, as arrays (K active objects), rounded as written."""
     t = smap.objects
     rows, cls_idx, conf = _active(smap)
-    names = smap.class_vector_names
-    d = _VALUE_DECIMALS
-    corners = box_corners(t.center[rows], t.yaw[rows], t.size[rows]).round(d).tolist()
-    cols = zip(
-        t.ids[rows].tolist(), cls_idx.tolist(), conf.round(d).tolist(), t.scores[rows].round(d).tolist(),
-        t.center[rows].round(d).tolist(), t.yaw[rows].round(d).tolist(), t.size[rows].round(d).tolist(),
-        corners, t.visible[rows].tolist(), t.defined[rows].tolist(), t.n_det[rows].tolist(),
-        t.n_nondet[rows].tolist(), t.first_session[rows].tolist(), t.first_frame[rows].tolist(),
-        t.last_session[rows].tolist(), t.last_frame[rows].tolist(),
-    )
+    d = VALUE_DECIMALS
+    return {
+        "id": t.ids[rows], "class": cls_idx, "confidence": conf.round(d), "scores": t.scores[rows].round(d),
+        "center": t.center[rows].round(d), "yaw": t.yaw[rows].round(d), "size": t.size[rows].round(d),
+        "corners": box_corners(t.center[rows], t.yaw[rows], t.size[rows]).round(d),
+        "visible": t.visible[rows], "defined": t.defined[rows], "n_det": t.n_det[rows],
+        "n_nondet": t.n_nondet[rows], "first_session": t.first_session[rows], "first_frame": t.first_frame[rows],
+        "last_session": t.last_session[rows], "last_frame": t.last_frame[rows],
+    }
+
+
+SEEN = ("first_session", "first_frame", "last_session", "last_frame")
+
+
+def _json_objects(cols: dict, names: list[str]) -> list[dict]:
+    keys = ["id", "class", "confidence", "scores", "center", "yaw", "size", "corners", "visible", "defined",
+            "n_det", "n_nondet", *SEEN]
     objects = []
-    for oid, ci, cf, sc, c, yaw, s, cn, vis, dfd, nd, nn, fs, ff, ls, lf in cols:
+    for oid, ci, cf, sc, c, yaw, s, cn, vis, dfd, nd, nn, fs, ff, ls, lf in zip(*(cols[k].tolist() for k in keys)):
         objects.append({
             "id": oid, "class": names[ci], "confidence": cf, "scores": dict(zip(names, sc)),
             "center": c, "yaw": yaw, "size": s, "corners": cn, "visible": vis, "defined": dfd,
             "n_det": nd, "n_nondet": nn,
             "first_seen": {"session": fs, "frame": ff}, "last_seen": {"session": ls, "frame": lf},
         })
+    return objects
+
+
+def json_head(smap: SemanticMap, map_path=None) -> dict:
+    """The JSON export without its objects (``"objects": []``, last)."""
     return {
         "format": JSON_FORMAT,
         "map": {
@@ -257,43 +274,50 @@ def _export_json(smap: SemanticMap, map_path=None) -> dict:
         "units": {"length": "m", "angle": "rad"},
         "frame": "map: right-handed, z up; yaw about z, counter-clockwise from +x",
         "classes": list(smap.classes),
-        "objects": objects,
+        "objects": [],
     }
 
 
-def _export_geojson(smap: SemanticMap, origin=None, map_path=None) -> dict:
+def geojson_columns(smap: SemanticMap, origin=None) -> dict:
+    """The values of the GeoJSON export's features, as arrays (K active objects), rounded as
+    written: ``coords`` (K, 5, 2) closed rings, ``bearing`` (or None) and the ``bbox`` list."""
     t = smap.objects
     rows, cls_idx, conf = _active(smap)
-    names = smap.class_vector_names
-    d = _VALUE_DECIMALS
+    d = VALUE_DECIMALS
     center, size, yaw = t.center[rows], t.size[rows], t.yaw[rows]
     ring = box_corners(center, yaw, size)[:, :4, :2]  # (K, 4, 2), counter-clockwise from above
     if origin is None:
-        coords = ring.round(_METRE_DECIMALS)
+        coords = ring.round(METRE_DECIMALS)
     else:
-        coords = map_xy_to_lonlat(ring, origin).round(_DEG_DECIMALS)
+        coords = map_xy_to_lonlat(ring, origin).round(DEG_DECIMALS)
     # Close each ring with an exact copy of its first position (RFC 7946 3.1.6).
     coords = np.concatenate([coords, coords[:, :1]], axis=1)
     bbox = None
     if len(coords):
         lo, hi = coords.reshape(-1, 2).min(axis=0), coords.reshape(-1, 2).max(axis=0)
         bbox = [float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])]
-    coords = coords.tolist()
-    z_min = (center[:, 2] - size[:, 2] / 2).round(d).tolist()
-    z_max = (center[:, 2] + size[:, 2] / 2).round(d).tolist()
     bearing = None
     if origin is not None:
         # Rounded, then wrapped again: 179.9999999 must not round up to 180.
-        bearing = np.mod(np.mod(origin[2] + 90.0 - np.degrees(yaw), 180.0).round(d), 180.0).tolist()
-    cols = zip(
-        t.ids[rows].tolist(), cls_idx.tolist(), conf.round(d).tolist(), t.scores[rows].round(d).tolist(),
-        center.round(d).tolist(), yaw.round(d).tolist(), size.round(d).tolist(), z_min, z_max,
-        t.defined[rows].tolist(), t.n_det[rows].tolist(), t.n_nondet[rows].tolist(),
-        t.first_session[rows].tolist(), t.first_frame[rows].tolist(),
-        t.last_session[rows].tolist(), t.last_frame[rows].tolist(), coords,
-    )
+        bearing = np.mod(np.mod(origin[2] + 90.0 - np.degrees(yaw), 180.0).round(d), 180.0)
+    return {
+        "id": t.ids[rows], "class": cls_idx, "confidence": conf.round(d), "scores": t.scores[rows].round(d),
+        "center": center.round(d), "yaw": yaw.round(d), "size": size.round(d),
+        "z_min": (center[:, 2] - size[:, 2] / 2).round(d), "z_max": (center[:, 2] + size[:, 2] / 2).round(d),
+        "defined": t.defined[rows], "n_det": t.n_det[rows], "n_nondet": t.n_nondet[rows],
+        "first_session": t.first_session[rows], "first_frame": t.first_frame[rows],
+        "last_session": t.last_session[rows], "last_frame": t.last_frame[rows],
+        "coords": coords, "bearing": bearing, "bbox": bbox,
+    }
+
+
+def _geojson_features(cols: dict, names: list[str]) -> list[dict]:
+    keys = ["id", "class", "confidence", "scores", "center", "yaw", "size", "z_min", "z_max", "defined", "n_det",
+            "n_nondet", *SEEN, "coords"]
+    bearing = None if cols["bearing"] is None else cols["bearing"].tolist()
     features = []
-    for k, (oid, ci, cf, sc, c, yw, s, z0, z1, dfd, nd, nn, fs, ff, ls, lf, ring_k) in enumerate(cols):
+    for k, (oid, ci, cf, sc, c, yw, s, z0, z1, dfd, nd, nn, fs, ff, ls, lf, ring_k) in enumerate(
+            zip(*(cols[key].tolist() for key in keys))):
         props = {
             "id": oid, "class": names[ci], "confidence": cf, "scores": dict(zip(names, sc)),
             "center": c, "yaw": yw, "size": s, "z_min": z0, "z_max": z1, "height": s[2],
@@ -304,6 +328,11 @@ def _export_geojson(smap: SemanticMap, origin=None, map_path=None) -> dict:
             props["x_axis_bearing_deg"] = bearing[k]
         features.append({"type": "Feature", "id": oid,
                          "geometry": {"type": "Polygon", "coordinates": [ring_k]}, "properties": props})
+    return features
+
+
+def geojson_head(smap: SemanticMap, origin, map_path, bbox, features=()) -> dict:
+    """The GeoJSON document around ``features`` (``bbox`` from :func:`geojson_columns`)."""
     doc = {
         "type": "FeatureCollection",
         "ltc:format": GEOJSON_FORMAT,
@@ -317,11 +346,20 @@ def _export_geojson(smap: SemanticMap, origin=None, map_path=None) -> dict:
         },
         "ltc:map": None if map_path is None else Path(map_path).name,
         "ltc:classes": list(smap.classes),
-        "features": features,
+        "features": list(features),
     }
     if bbox is not None:
         doc["bbox"] = bbox  # RFC 7946 5: [west, south, east, north] (or [xmin, ymin, xmax, ymax])
     return doc
+
+
+def head_text(doc: dict) -> tuple[str, str, str]:
+    """(text before the first item, the items' key, text after the last item) of :func:`dumps`."""
+    key = "features" if "features" in doc else "objects"
+    head = {k: v for k, v in doc.items() if k != key}
+    text = json.dumps(head, indent=1, ensure_ascii=False, allow_nan=False)
+    lead = text[:-1].rstrip() + ("," if head else "")
+    return f'{lead}\n "{key}": [\n', key, " ]\n}\n"
 
 
 def dumps(doc: dict) -> str:
@@ -330,14 +368,10 @@ def dumps(doc: dict) -> str:
     Fully indented, a 100,000-object export is millions of lines of single numbers; one compact
     line per object keeps it greppable, diffable and about a third of the size.
     """
-    key = "features" if "features" in doc else "objects"
-    items = doc.get(key, [])
-    head = {k: v for k, v in doc.items() if k != key}
+    lead, key, tail = head_text(doc)
     compact = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, allow_nan=False)
-    body = ",\n".join("  " + compact.encode(it) for it in items)
-    head_text = json.dumps(head, indent=1, ensure_ascii=False, allow_nan=False)
-    lead = head_text[:-1].rstrip() + ("," if head else "")
-    return f'{lead}\n "{key}": [\n{body}{chr(10) if body else ""} ]\n}}\n'
+    body = ",\n".join("  " + compact.encode(it) for it in doc.get(key, []))
+    return f'{lead}{body}{chr(10) if body else ""}{tail}'
 
 
 def write_atomic(path, text: str) -> None:
