@@ -195,7 +195,7 @@ def info(map_path, fmt):
         shown = f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{size} bytes"
         click.echo(f"warning: {tmp}: a temporary file ({shown}) left by an interrupted write; "
                    "the next ingest into this map removes it", err=True)
-    smap = load_map(map_path)
+    smap = load_map(map_path, events=False)
     t = smap.objects
     active = np.flatnonzero(t.status == ACTIVE)
     per_class = Counter(smap.classes[int(i)] for i in t.scores[active, :-1].argmax(axis=1)) if len(active) else Counter()
@@ -208,7 +208,7 @@ def info(map_path, fmt):
                     "merged": int((t.status == MERGED).sum())},
         "per_class": dict(sorted(per_class.items())),
         "frames": len(smap.frame_keys),
-        "events": len(smap.events),
+        "events": smap.n_events,
         "sessions": [
             {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped", "v_other")}
             | {"visit": max(1, int(s.get("visit") or 0))}
@@ -288,7 +288,7 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
         raise click.UsageError("--near and --radius go together")
     if radius is not None and not (math.isfinite(radius) and radius >= 0):
         raise click.BadParameter(f"must be >= 0, not {radius}", param_hint="--radius")
-    smap = load_map(map_path)
+    smap = load_map(map_path, events=removed)  # only --removed reads the event log
     spec = q.Query(classes=classes, near=point, radius=radius, min_confidence=min_confidence, ids=ids, removed=removed)
     result = q.select(smap, spec, map_path)
     recs = q.records(smap, result)

@@ -52,7 +52,7 @@ def export_cmd(map_path, fmt, output, origin):
             raise click.BadParameter(exc.message, param_hint="--origin") from None
     from ltc_cli.map.export_stream import export_chunks, write_export
 
-    smap = load_map(map_path)
+    smap = load_map(map_path, events=False)
     chunks = export_chunks(smap, fmt, geo_origin, map_path)
     if output:
         write_export(output, chunks)
@@ -87,7 +87,7 @@ def render_cmd(map_path, output, ground_truth, width, height, labels, show_chang
 
     if since is not None and not show_changes:
         raise click.UsageError("--since goes with --changes")
-    smap = load_map(map_path)
+    smap = load_map(map_path, events=show_changes)  # only --changes reads the event log
     gt = load_ground_truth(ground_truth) if ground_truth else None
     changes = map_changes(smap, since, map_path=map_path).changes if show_changes else None
     res = render_map(smap, output, ground_truth=gt, width=width, height=height, labels=labels,

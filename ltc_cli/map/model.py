@@ -240,6 +240,9 @@ class SemanticMap:
     sessions: list[dict] = field(default_factory=list)
     frame_keys: set = field(default_factory=set)
     created: str = ""
+    # None: ``events`` is the whole log; a count: the map was loaded without its log (which then
+    # holds this many events, on disk only).
+    unread_events: int | None = None
 
     @classmethod
     def new(cls, classes: list[str]) -> "SemanticMap":
@@ -248,6 +251,16 @@ class SemanticMap:
     @property
     def class_vector_names(self) -> list[str]:
         return list(self.classes) + ["other"]
+
+    @property
+    def n_events(self) -> int:
+        return len(self.events) if self.unread_events is None else self.unread_events
+
+    def require_events(self) -> None:
+        """Raise RuntimeError when the event log was not loaded (a bug in the caller: reading
+        removals from an empty log, or saving a map that would lose its log)."""
+        if self.unread_events is not None:
+            raise RuntimeError("this map was loaded without its event log (load_map(events=False))")
 
     def active_rows(self) -> np.ndarray:
         return np.flatnonzero(self.objects.status == ACTIVE)

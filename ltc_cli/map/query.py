@@ -131,6 +131,7 @@ def select(smap: SemanticMap, query: Query, map_path=None) -> QueryResult:
 
 def removal_events(smap: SemanticMap) -> dict[int, object]:
     """object id -> its last ``removed`` Event (session, frame, frame_key, detail)."""
+    smap.require_events()
     out = {}
     for ev in smap.events:
         if ev.kind == "removed":

@@ -260,10 +260,11 @@ def _member(f: h5py.File, name: str, kind, path: Path):
     return obj
 
 
-def _read_arrays(f: h5py.File, path: Path) -> tuple[dict, dict]:
-    """Every dataset of the map, read whole."""
+def _read_arrays(f: h5py.File, path: Path, events: bool = True) -> tuple[dict, dict]:
+    """Every dataset of the map, read whole (the event log's only with ``events``)."""
     try:
-        data = {name: np.asarray(_member(f, name, h5py.Dataset, path)[()]) for name in REQUIRED}
+        data = {name: _read_or_shape(_member(f, name, h5py.Dataset, path), events or not name.startswith("events/"))
+                for name in REQUIRED}
         # Object columns newer than the file are absent (read as zeros); present ones are checked.
         og = f["objects"]
         data.update({f"objects/{name}": np.asarray(og[name][()]) for name in ADDED_COLUMNS if name in og})
@@ -277,6 +278,13 @@ def _read_arrays(f: h5py.File, path: Path) -> tuple[dict, dict]:
     return data, sessions
 
 
+def _read_or_shape(ds: h5py.Dataset, read: bool) -> np.ndarray:
+    """The dataset's values, or (``read`` False) an array of its shape and kind that holds none
+    (no memory): enough for the checks of kind and length. Text stands in as str (no decoding)."""
+    return np.asarray(ds[()]) if read else np.broadcast_to(
+        np.zeros((), "U1" if h5py.check_string_dtype(ds.dtype) else ds.dtype), ds.shape)
+
+
 def _decode_text(arrays: dict, prefix: str, path: Path) -> None:
     """Text datasets (fixed-length or variable-length UTF-8) -> object arrays of str, in place."""
     for name, arr in list(arrays.items()):
@@ -287,13 +295,14 @@ def _decode_text(arrays: dict, prefix: str, path: Path) -> None:
                 raise _damaged(f"{prefix}{name} holds text that is not UTF-8", path) from None
 
 
-def load_map(path) -> SemanticMap:
+def load_map(path, events: bool = True) -> SemanticMap:
     """Read a whole map. Raises MapFormatError for files that are not maps, are too new, or are
-    damaged (docs/reliability.md)."""
+    damaged (docs/reliability.md). ``events=False`` leaves the event log on disk (1.5M events:
+    4.6 s, 900 MiB) but checks all but its contents; ``n_events`` counts it; such a map cannot be saved."""
     path = Path(path)
     f = _open_checked(path)
     try:
-        data, sess = _read_arrays(f, path)
+        data, sess = _read_arrays(f, path, events)
         created = _attr_text(f, "created", path)
     finally:
         f.close()
@@ -303,10 +312,11 @@ def load_map(path) -> SemanticMap:
     classes = _text(data["classes"])
     cols = {name: data[f"objects/{name}"] for name in list(COLUMNS) + ["scores"] if f"objects/{name}" in data}
     table = ObjectTable.from_columns(cols)
-    ev = {k: _text(data[f"events/{k}"]) for k in EVENT_TEXT}
-    ev.update({k: data[f"events/{k}"].tolist() for k in EVENT_INT})
-    n_ev = len(ev["kind"])
-    events = [Event(**{k: ev[k][i] for k in EVENT_TEXT + EVENT_INT}) for i in range(n_ev)]
+    log, unread = [], len(data["events/kind"])
+    if events:
+        ev = {k: _text(data[f"events/{k}"]) for k in EVENT_TEXT}
+        ev.update({k: data[f"events/{k}"].tolist() for k in EVENT_INT})
+        log = [Event(**{k: ev[k][i] for k in EVENT_TEXT + EVENT_INT}) for i in range(unread)]
     n_s = len(next(iter(sess.values()))) if sess else 0
     sessions = []
     for i in range(n_s):
@@ -321,8 +331,8 @@ def load_map(path) -> SemanticMap:
         sessions.append(row)
     return SemanticMap(
         classes=classes, objects=table, up_rotation=data["up_rotation"].astype(np.float64),
-        events=events, sessions=sessions, frame_keys=set(_text(data["frames"])),
-        created=created,
+        events=log, sessions=sessions, frame_keys=set(_text(data["frames"])),
+        created=created, unread_events=None if events else unread,
     )
 
 
@@ -337,6 +347,7 @@ def _text_dataset(group, name: str, values: list[str]) -> None:
 
 def map_image(smap: SemanticMap) -> bytes:
     """The whole map as the bytes of an HDF5 file, built in memory."""
+    smap.require_events()
     name = f"ltc-map-{os.getpid()}-{next(_images)}.h5"
     with h5py.File(name, "w", driver="core", backing_store=False, libver=("v108", "latest")) as f:
         # Text attributes fixed-length too (np.bytes_), for the reason _text_dataset gives; the
