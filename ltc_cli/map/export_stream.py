@@ -65,8 +65,8 @@ def _common(cols, names):
     return (jt.lit('{"id":'), jt.integers(cols["id"]), jt.lit(',"class":'), jt.texts(cols["class"], names),
             jt.lit(',"confidence":'), jt.decimals(cols["confidence"], d),
             jt.lit(',"scores":'), jt.seq(jt.decimals(cols["scores"], d), names),
-            jt.lit(',"center":'), jt.seq(jt.decimals(cols["center"], d)), jt.lit(',"yaw":'), jt.decimals(cols["yaw"], d),
-            jt.lit(',"size":'), jt.seq(jt.decimals(cols["size"], d)))
+            jt.lit(',"center":'), jt.seq(jt.decimals(cols["center"], d)),
+            jt.lit(',"yaw":'), jt.decimals(cols["yaw"], d), jt.lit(',"size":'), jt.seq(jt.decimals(cols["size"], d)))
 
 
 def _json_line(cols, names):
