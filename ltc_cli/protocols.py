@@ -83,7 +83,8 @@ class Policy(Protocol):
 
     # Optional: ``removals(scores (M, C+1)) -> (M,) bool`` decides which objects that just got a
     # non-detection are removed, given their fused class vectors (other last). A policy without it
-    # keeps the paper's rule, removal once `other` leads (``static`` never removes).
+    # keeps the paper's rule, removal once `other` leads (``static`` never removes). Optional
+    # ``removes = False``: the policy removes nothing, not even by the end-of-session absence rule.
 
 
 #: ``factory(options) -> Policy``; ``options`` is the config's ``maintenance`` section.

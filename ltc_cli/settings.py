@@ -70,6 +70,7 @@ class MaintenanceSettings(TypedDict):
     min_visible_share: float
     min_detections: int
     min_detection_share: Optional[float]
+    absent_after_views: Optional[int]
     ray_step: int
     depth_tolerance: float
 

@@ -25,6 +25,8 @@ class NonDetectionPolicy:
 class StaticPolicy:
     """The static-world assumption: nothing is ever removed (a baseline to compare against)."""
 
+    removes = False  # nor by the session-level absence rule (maintenance.absent_after_views)
+
     def __init__(self, options: dict):
         pass
 

@@ -165,3 +165,33 @@ def test_a_miss_seen_through_counts_and_weighs_more():
     for k in range(3):
         mapper.process_frame(k, str(k), [], [], seen, T_world_camera(), INTR, (0.3, 6.0))
     assert mapper.map.objects.n_nondet[there] == 1
+
+
+def test_an_object_clearly_visible_in_a_whole_session_without_a_detection_is_removed_at_its_end():
+    """absent_after_views 5: a chair of session 0 seen clearly in 5 frames of session 1 (the wall
+    behind it, one view: one counted non-detection, far from eq. 4's removal) and detected in none
+    goes at the end of session 1; with 4 such frames, or when detected once, it stays."""
+    def run(clear_frames, detect_once=False):
+        cfg = defaults()
+        cfg["maintenance"]["absent_after_views"] = 5
+        cfg["maintenance"]["seen_empty_share"] = None  # misses from one view: one counted
+        smap = make_mapper(cfg).map
+        t = smap.objects
+        row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
+                       scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
+        mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                        plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+        empty, _ = render([], wall_x=4.0)
+        seen, masks = render([CHAIR_FACE], wall_x=4.0)
+        for k in range(clear_frames):
+            if detect_once and k == 0:
+                mapper.process_frame(k, str(k), [masks[0]], [chair_vector(0.8)], seen, T_world_camera(), INTR, (0.3, 6.0))
+            else:
+                mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+        assert t.status[row] == ACTIVE and t.clear_in_session[row] == clear_frames
+        removed = mapper.prune_unconfirmed(2, -1, "end", None)
+        return t.status[row], removed
+
+    assert run(5) == (REMOVED, 1)
+    assert run(4) == (ACTIVE, 0)
+    assert run(6, detect_once=True) == (ACTIVE, 0)

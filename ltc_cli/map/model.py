@@ -21,7 +21,7 @@ def top_class(scores: np.ndarray) -> np.ndarray:
 ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 # Columns added after format 1: a map written before them reads them as zeros.
-ADDED_COLUMNS = frozenset({"n_clear", "nondet_view"})
+ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session"})
 
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
@@ -42,6 +42,11 @@ COLUMNS = {
     # Camera position (3) and forward axis (3) at the object's last counted non-detection (zeros:
     # none yet): misses from nearly the same view are one piece of evidence, not several.
     "nondet_view": ((6,), np.float64),
+    # The session of the object's latest clear view, and how many clear views it had in it: an
+    # object of an earlier session seen clearly again and again in a session that never detects it
+    # is gone (maintenance.absent_after_views).
+    "clear_session": ((), np.int64),
+    "clear_in_session": ((), np.int64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),
     "first_frame": ((), np.int64),

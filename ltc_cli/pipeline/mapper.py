@@ -195,9 +195,14 @@ class Mapper:
             vectors = self.non_detection_vectors()
             v_empty = self.cfg["maintenance"]["v_other_seen_empty"]
             empty_vectors = non_detection_vectors(self.map.classes, v_empty, None) if v_empty is not None else vectors
+            cols = self.map.objects.cols
             for row in rows[clear]:
                 self._touch(int(row))
-                self.map.objects.cols["n_clear"][row] += 1
+                cols["n_clear"][row] += 1
+                # clear_session holds session + 1 (0: no clear view yet, as maps before the column).
+                if cols["clear_session"][row] != self.session + 1:
+                    cols["clear_session"][row], cols["clear_in_session"][row] = self.session + 1, 0
+                cols["clear_in_session"][row] += 1
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
                 res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
@@ -270,6 +275,21 @@ class Mapper:
         t = self.map.objects
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
         rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share)]
+        absent = self.cfg["maintenance"]["absent_after_views"]
+        # A policy that never removes (the static world) says so with ``removes = False``.
+        if absent is not None and getattr(self.policy, "removes", True):
+            # Objects of earlier sessions seen clearly in at least ``absent`` frames of this one and
+            # detected in none: a whole visit's worth of views, not one unlucky frame.
+            old = np.flatnonzero((t.status == ACTIVE) & (t.first_session < self.session)
+                                 & (t.last_session < self.session) & (t.clear_session == self.session + 1)
+                                 & (t.clear_in_session >= absent))
+            for row in old:
+                self._touch(int(row))
+                self._set_status(int(row), REMOVED)
+                self._log(frame_index, frame_key, "removed", row + 1,
+                          detail=(f"other: clearly visible in {int(t.clear_in_session[row])} frames of this session, "
+                                  "detected in none"))
+            rows = np.concatenate([rows, old])
         for row in rows:
             self._touch(int(row))
             self._set_status(int(row), REMOVED)
