@@ -66,6 +66,10 @@ class Mapper:
             top_class(t.scores[rows]), np.maximum(t.n_clear[rows], t.n_nondet[rows]), t.n_nondet[rows],
             len(smap.classes))
         self._touched: dict = {}
+        self._fixed_vectors = None
+        self._fixed_vectors = self.non_detection_vectors()
+        v_empty = m_cfg["v_other_seen_empty"]
+        self._empty_vectors = non_detection_vectors(smap.classes, v_empty, None) if v_empty is not None else None
         # A policy without a removal rule of its own keeps the paper's: removed once `other` leads.
         self._removals = getattr(policy, "removals", other_leads)
 
@@ -98,6 +102,8 @@ class Mapper:
         one, else from the detection rate learnt on this map (``maintenance.learn_detection_rate``),
         else the configured v_Other."""
         m_cfg = self.cfg["maintenance"]
+        if not m_cfg["learn_detection_rate"] and self._fixed_vectors is not None:
+            return self._fixed_vectors  # nothing learnt: the same every frame
         v = np.full(len(self.map.classes), float(m_cfg["v_other"]))
         if m_cfg["learn_detection_rate"]:
             rate = learnt_detection_rate(self.rate_views, self.rate_hits, m_cfg["rate_prior"], m_cfg["rate_prior_views"])
@@ -193,8 +199,7 @@ class Mapper:
             matched = np.array([r in matched_rows for r in rows])
             missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)
             vectors = self.non_detection_vectors()
-            v_empty = self.cfg["maintenance"]["v_other_seen_empty"]
-            empty_vectors = non_detection_vectors(self.map.classes, v_empty, None) if v_empty is not None else vectors
+            empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
             for row in rows[clear]:
                 self._touch(int(row))
