@@ -17,7 +17,7 @@ child process (resource.getrusage), so other engineers' work on a shared machine
 times more than these.
 
     python benchmarks/bench_speed.py [--sim DIR] [--frames 30] [--repeat 7] [--baseline CMD]
-                                     [--openvino-python PATH]
+                                     [--openvino-python PATH] [--items 1234]
 """
 
 from __future__ import annotations
@@ -157,6 +157,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=30, help="TUM frames timed per detector figure")
     ap.add_argument("--repeat", type=int, default=7, help="start-up runs (median)")
     ap.add_argument("--baseline", help="another ltc command line to measure items 1, 2 and 4 with")
+    ap.add_argument("--items", default="1234", help="which items to run, e.g. 1 or 12 (default: all)")
     ap.add_argument("--openvino-python", metavar="CMD",
                     help="a Python command line with onnxruntime-openvino that imports ltc_cli and ltc_plugins, "
                          "e.g. \"env PYTHONPATH=/tmp/ltc-tree /tmp/ov-venv/bin/python\"")
@@ -170,40 +171,62 @@ def main() -> None:
         if lap is None:
             run_cpu([*LTC, "simulate", str(tmp / "sim"), "--scene", "small", "--laps", "1", "--seed", "0"])
             lap = tmp / "sim" / "lap1"
-        n_lap = len(list((lap / "depth").iterdir()))
-        print(f"1. simulated 640x480 lap ({n_lap} frames, recorded detector): CPU ms per frame")
-        dec = decode_only(lap)
-        for name in ("opencv", "pillow"):
-            print(f"   decode only, {name:<7}: depth {dec[name]['depth']:6.2f}, depth + colour {dec[name]['both']:6.2f}")
-        for tag, ltc in ltcs.items():
-            ms = whole_ingest(ltc, lap, tmp, tag)
-            print(f"   whole ingest, {tag:<8}: {ms:6.2f}  = {ms / dec['opencv']['both']:.2f}x decode (OpenCV, depth + colour), "
-                  f"{ms / dec['pillow']['both']:.2f}x (Pillow)")
-        print(f"2. start-up, median CPU s of {args.repeat} runs")
-        info_map = tmp / "sim-now.h5"
-        for tag, ltc in ltcs.items():
-            print(f"   {tag:<8}: ltc --help {startup(ltc, ['--help'], args.repeat):.3f}, "
-                  f"ltc info {startup(ltc, ['info', str(info_map)], args.repeat):.3f}")
-        print(f"3. detector alone, ms per frame on {args.frames} TUM frames (1 intra-op thread): wall / CPU")
-        pythons = {"cpu": [sys.executable]}
-        ov = shlex.split(args.openvino_python) if args.openvino_python else [sys.executable]
-        if has_openvino(ov):
-            pythons["openvino"] = ov
-        else:
-            print("   openvino: not available (no onnxruntime-openvino in this Python; see --openvino-python)")
-        for provider, python in pythons.items():
-            for name, model in MODELS.items():
-                r = detector_ms(python, model, provider, args.frames)
-                if "error" in r:
-                    print(f"   {name:<4} {provider:<8}: fails: {r['error'][-150:]}")
-                    continue
-                print(f"   {name:<4} {provider:<8}: {r['wall']:6.1f} / {r['cpu']:6.1f}")
-        n_tum = len(list((TUM / "rgb").iterdir()))
-        print(f"4. end to end, tum-fr1-rpy ({n_tum} frames), fp32 model: frames/s (wall), CPU ms per frame")
-        for tag, ltc in ltcs.items():
-            for jobs in (1, 2):
-                fps, ms = end_to_end(ltc, jobs, tmp, tag)
-                print(f"   {tag:<8} --jobs {jobs}: {fps:5.1f} frames/s, {ms:5.1f} ms CPU per frame")
+        if "1" in args.items:
+            ingest_vs_decode(ltcs, lap, tmp)
+        if "2" in args.items:
+            startups(ltcs, lap, tmp, args.repeat)
+        if "3" in args.items:
+            detectors(args)
+        if "4" in args.items:
+            end_to_ends(ltcs, tmp)
+
+
+def ingest_vs_decode(ltcs: dict, lap: Path, tmp: Path) -> None:
+    n_lap = len(list((lap / "depth").iterdir()))
+    print(f"1. simulated 640x480 lap ({n_lap} frames, recorded detector): CPU ms per frame")
+    dec = decode_only(lap)
+    for name in ("opencv", "pillow"):
+        print(f"   decode only, {name:<7}: depth {dec[name]['depth']:6.2f}, depth + colour {dec[name]['both']:6.2f}")
+    for tag, ltc in ltcs.items():
+        ms = whole_ingest(ltc, lap, tmp, tag)
+        print(f"   whole ingest, {tag:<8}: {ms:6.2f}  = {ms / dec['opencv']['both']:.2f}x decode (OpenCV, depth + colour), "
+              f"{ms / dec['pillow']['both']:.2f}x (Pillow)")
+
+
+def startups(ltcs: dict, lap: Path, tmp: Path, repeat: int) -> None:
+    print(f"2. start-up, median CPU s of {repeat} runs")
+    info_map = tmp / "sim-now.h5"
+    if not info_map.exists():
+        whole_ingest(LTC, lap, tmp, "now")
+    for tag, ltc in ltcs.items():
+        print(f"   {tag:<8}: ltc --help {startup(ltc, ['--help'], repeat):.3f}, "
+              f"ltc info {startup(ltc, ['info', str(info_map)], repeat):.3f}")
+
+
+def detectors(args: argparse.Namespace) -> None:
+    print(f"3. detector alone, ms per frame on {args.frames} TUM frames (1 intra-op thread): wall / CPU")
+    pythons = {"cpu": [sys.executable]}
+    ov = shlex.split(args.openvino_python) if args.openvino_python else [sys.executable]
+    if has_openvino(ov):
+        pythons["openvino"] = ov
+    else:
+        print("   openvino: not available (no onnxruntime-openvino in this Python; see --openvino-python)")
+    for provider, python in pythons.items():
+        for name, model in MODELS.items():
+            r = detector_ms(python, model, provider, args.frames)
+            if "error" in r:
+                print(f"   {name:<4} {provider:<8}: fails: {r['error'][-150:]}")
+                continue
+            print(f"   {name:<4} {provider:<8}: {r['wall']:6.1f} / {r['cpu']:6.1f}")
+
+
+def end_to_ends(ltcs: dict, tmp: Path) -> None:
+    n_tum = len(list((TUM / "rgb").iterdir()))
+    print(f"4. end to end, tum-fr1-rpy ({n_tum} frames), fp32 model: frames/s (wall), CPU ms per frame")
+    for tag, ltc in ltcs.items():
+        for jobs in (1, 2):
+            fps, ms = end_to_end(ltc, jobs, tmp, tag)
+            print(f"   {tag:<8} --jobs {jobs}: {fps:5.1f} frames/s, {ms:5.1f} ms CPU per frame")
 
 
 if __name__ == "__main__":

@@ -47,9 +47,16 @@ def _where(error) -> str:
     return ".".join(parts) if parts else "(top level)"
 
 
+@lru_cache(maxsize=None)
+def _validator(name: str):
+    return FiniteValidator(load_schema(name))
+
+
 def validate(document, name: str, path=None) -> None:
     """Raise SchemaError naming the file and the path inside it of the first problem."""
-    validator = FiniteValidator(load_schema(name))
+    validator = _validator(name)  # built once per schema: the recorded detector checks every frame's file
+    if validator.is_valid(document):  # stops at the first error; best_match below walks them all
+        return
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
     if error is not None:
         raise SchemaError(f"at {_where(error)}: {_message(error)}", path)

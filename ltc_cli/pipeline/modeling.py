@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
+import cv2
 
 from ltc_cli.geometry.boxes import CORNER_SIGNS, EDGES_BY_AXIS, Boxes, fit_box
 from ltc_cli.geometry.camera import backproject, invert_pose, project, transform
@@ -46,7 +46,11 @@ def thin_crop(mask: np.ndarray, max_iterations: int, fraction: float):
     R0, R1, C0, C1 = max(r0 - k, 0), min(r1 + k, h), max(c0 - k, 0), min(c1 + k, w)
     crop = mask[R0:R1, C0:C1]
     if k > 0:
-        crop = ndimage.minimum_filter(crop.view(np.uint8), size=2 * k + 1, mode="nearest").view(bool)
+        # A binary erosion by a (2k+1)^2 square: OpenCV's, the same pixels as scipy.ndimage's
+        # minimum_filter (mode "nearest"; tests/test_modeling.py), without importing ndimage in an
+        # ingest (~0.04 s CPU). Replicated borders never lower a minimum that the window did not hold.
+        kernel = np.ones((2 * k + 1, 2 * k + 1), np.uint8)
+        crop = cv2.erode(crop.view(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE).view(bool)
     return crop, R0, C0, k
 
 
