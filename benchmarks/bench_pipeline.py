@@ -5,7 +5,11 @@ others out of view: 200 objects in all, then 100,000, to show that objects out o
 time. Prints the median milliseconds per frame of each stage and of the whole pipeline, and the cost
 of a whole lap (a session's start, which indexes the map's objects, plus every frame) into each map.
 
-    python benchmarks/bench_pipeline.py [--frames N]
+With ``--counts 10,20,40,80``, instead: frames of a wall of small boxes, 10 to 80 detections per
+frame, and the median ms per frame of each stage against the count (and per detection), to show
+whether a detection's cost grows with the others in the frame (issue 11).
+
+    python benchmarks/bench_pipeline.py [--frames N] [--counts 10,20,40,80]
 """
 
 from __future__ import annotations
@@ -98,14 +102,67 @@ def run(n_far: int, frames: int, cfg: dict):
         statistics.mean(dets), len(smap.active_rows()), 1000 * (start + sum(totals)), 1000 * start
 
 
+def shelf_objects(n: int, seed: int = 0):
+    """n boxes of 0.18-0.3 m on a wall of shelves 2.6-3.4 m ahead, in a grid that fills the view."""
+    rng = np.random.default_rng(seed)
+    ncol = int(np.ceil(np.sqrt(n * 4 / 3)))
+    nrow = int(np.ceil(n / ncol))
+    ys, zs = np.linspace(-1.5, 1.5, ncol), np.linspace(-0.1, 2.0, nrow)
+    pitch_y, pitch_z = (ys[1] - ys[0]) if ncol > 1 else 1.0, (zs[1] - zs[0]) if nrow > 1 else 1.0
+    objs = []
+    for i in range(n):
+        y, z = ys[i % ncol], zs[i // ncol]
+        w, h = (0.45 + 0.3 * rng.random()) * pitch_y, (0.45 + 0.3 * rng.random()) * pitch_z
+        x0 = 2.6 + 0.8 * rng.random()
+        objs.append((x0, x0 + 0.25, y - w / 2, y + w / 2, z, z + h))
+    return objs
+
+
+def run_count(n: int, frames: int, cfg: dict):
+    """Median ms per frame of each stage with n objects in view (one detection each)."""
+    smap = SemanticMap.new(CLASSES)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]))
+    objs = shelf_objects(n)
+    cam_ys = 0.05 * np.sin(np.linspace(0, 4 * np.pi, frames))
+    per_stage = {k: [] for k in ("modeling", "association", "integration", "maintenance", "merge")}
+    totals, dets = [], []
+    for i, cam_y in enumerate(cam_ys):
+        depth, masks = render(objs, wall_x=4.0, cam_y=cam_y)
+        masks = [m for m in masks if m.any()]
+        vecs = [class_vector(k) for k in range(len(masks))]
+        t0 = time.perf_counter()
+        res = mapper.process_frame(i, str(i), masks, vecs, depth, T_world_camera(cam_y=cam_y), INTR, (0.3, 6.0))
+        if i >= 3:  # after the objects entered the map
+            totals.append(time.perf_counter() - t0)
+            dets.append(len(masks))
+            for k, v in res.timings.items():
+                per_stage[k].append(v)
+    return {k: 1000 * statistics.median(v) for k, v in per_stage.items()}, 1000 * statistics.median(totals), \
+        statistics.mean(dets), len(smap.active_rows())
+
+
+def per_count(counts: list[int], frames: int, repeat: int, cfg: dict) -> None:
+    print(f"640x480, {frames} frames, one thread; median ms per frame (fastest of {repeat}), and per detection")
+    for n in counts:
+        stages, total, n_det, n_obj = min((run_count(n, frames, cfg) for _ in range(repeat)), key=lambda r: r[1])
+        cols = "  ".join(f"{k} {v:6.2f}" for k, v in stages.items())
+        print(f"{n_det:5.1f} detections/frame, {n_obj:3d} objects: {cols}  | pipeline {total:6.2f} ms, "
+              f"{total / n_det:5.2f} ms per detection")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=60)
     ap.add_argument("--set", dest="sets", action="append", default=[], help="config override key=value")
     ap.add_argument("--repeat", type=int, default=3, help="runs per map size; the fastest median is kept "
                     "(a shared machine's noise only ever adds time)")
+    ap.add_argument("--counts", help="detections per frame to time instead, e.g. 10,20,40,80")
     args = ap.parse_args()
     cfg = load_config(None, args.sets)
+    if args.counts:
+        per_count([int(c) for c in args.counts.split(",")], args.frames, args.repeat, cfg)
+        return
     print(f"640x480, {args.frames} frames, one thread; median ms per frame (detection and decoding excluded), "
           f"fastest of {args.repeat} runs")
     results, laps = {}, {}
