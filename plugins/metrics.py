@@ -10,6 +10,10 @@ class VertexMetric:
     """Eq. 2: mean distance of corresponding vertices (4 cyclic shifts), visible pairs only when
     at least ``min_visible_pairs`` of them are visible in both boxes."""
 
+    # The mean distance of corners is at least the centres' distance less both half diagonals:
+    # the mapper compares a detection only with the map objects that bound lets match.
+    center_bound = True
+
     def __init__(self, options: dict):
         self.min_visible_pairs = int(options.get("min_visible_pairs", 3))
 
@@ -20,6 +24,8 @@ class VertexMetric:
 class CentroidMetric:
     """Baseline: distance between box centres. Blind to size and to which part a view saw, so a
     partial view of a long table lands far from the table's centre and makes a duplicate."""
+
+    center_bound = True  # the distance is the centres' distance itself
 
     def __init__(self, options: dict):
         pass

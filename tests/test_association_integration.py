@@ -125,3 +125,85 @@ def test_integration_both_partial_encloses_and_erodes():
     corners = box_corners(new.center, new.yaw, new.size)
     assert new.visible.sum() == 2
     assert np.all(corners[new.visible][:, 0] < -0.4)
+
+
+def random_boxes(rng, m, spread=2.0):
+    """m boxes crowded into a few metres: many close pairs, some inside others, random visibility."""
+    center = np.c_[rng.uniform(-spread, spread, (m, 2)), rng.uniform(0.1, 1.0, m)]
+    return Boxes(center, rng.uniform(-np.pi, np.pi, m), rng.uniform(0.05, 1.2, (m, 3)), rng.random((m, 8)) < 0.7)
+
+
+def test_vertex_distance_is_never_below_the_centre_bound():
+    # The bound behind the candidates' pre-selection (within_reach): mean corner distance >= centre
+    # distance - both half diagonals, on all pairs and on the visible pairs alone.
+    from ltc_cli.pipeline.association import half_diagonals
+
+    rng = np.random.default_rng(11)
+    for _ in range(30):
+        b = random_boxes(rng, 50)
+        for k in range(5):
+            d, _ = vertex_distance(b.take(slice(k, k + 1)), b, min_visible_pairs=int(rng.integers(1, 5)))
+            bound = np.linalg.norm(b.center - b.center[k], axis=1) - half_diagonals(b.size) - half_diagonals(b.size)[k]
+            assert (d >= bound - 1e-12).all()
+
+
+def test_duplicate_pairs_with_reach_are_those_of_every_pair():
+    from ltc_cli.pipeline.association import duplicate_pairs
+
+    rng = np.random.default_rng(12)
+    metric = lambda det, cands: vertex_distance(det, cands)[0]  # noqa: E731
+    found = 0
+    for _ in range(30):
+        b = random_boxes(rng, int(rng.integers(2, 60)), spread=3.0)
+        top = rng.integers(0, 3, len(b))
+        args = (b, top, metric, 0.4, 0.25, 0.5, 0.7, 0.1)
+        want = duplicate_pairs(*args)
+        assert duplicate_pairs(*args, reach=0.05) == want
+        found += len(want)
+    assert found > 20  # the scenes do have duplicates
+
+
+def test_mapper_decides_the_same_with_and_without_the_candidate_bound():
+    # Frames of 30 crowded boxes, detections jittered: the maps made with the vertex metric (which
+    # declares center_bound, so candidates are pre-selected) and with the same metric not declaring
+    # it (every candidate compared) are identical, column for column.
+    from ltc_cli import plugins
+    from ltc_cli.config import defaults
+    from ltc_cli.map.model import SemanticMap
+    from ltc_cli.pipeline.mapper import Mapper
+    from tests.scene import INTR, T_world_camera, render
+
+    class Unbounded:
+        center_bound = False
+
+        def __init__(self, inner):
+            self.inner = inner
+
+        def distance(self, det, cands):
+            return self.inner.distance(det, cands)
+
+    cfg = defaults()
+    rng = np.random.default_rng(5)
+    objs = [(x, x + 0.3, y, y + w, z, z + h) for x, y, z, w, h in zip(rng.uniform(2.5, 3.5, 30), rng.uniform(-1.5, 1.3, 30),
+                                                                     rng.uniform(0, 1.5, 30), rng.uniform(0.1, 0.5, 30),
+                                                                     rng.uniform(0.1, 0.6, 30))]
+    maps = []
+    for bounded in (True, False):
+        metric = plugins.get("metrics", "vertex").factory(cfg["association"])
+        smap = SemanticMap.new(["a", "b", "c"])
+        mapper = Mapper(smap, cfg, metric if bounded else Unbounded(metric),
+                        plugins.get("policies", "non-detection").factory(cfg["maintenance"]))
+        frame_rng = np.random.default_rng(6)
+        for i in range(12):
+            cam_y = 0.1 * np.sin(i)
+            depth, masks = render(objs, wall_x=4.0, cam_y=cam_y)
+            depth = depth + frame_rng.normal(0, 0.01, depth.shape).astype(np.float32)
+            keep = [m for m in masks if m.sum() > 50]
+            vecs = [np.roll([0.7, 0.1, 0.1, 0.1], int(frame_rng.integers(0, 3))) for _ in keep]
+            mapper.process_frame(i, str(i), keep, vecs, depth, T_world_camera(cam_y=cam_y), INTR, (0.3, 6.0))
+        maps.append(smap)
+    a, b = maps
+    assert a.objects.n == b.objects.n > 10
+    for name, col in a.objects.cols.items():
+        assert np.array_equal(col[: a.objects.n], b.objects.cols[name][: b.objects.n]), name
+    assert [(e.kind, e.object_id, e.other_id) for e in a.events] == [(e.kind, e.object_id, e.other_id) for e in b.events]

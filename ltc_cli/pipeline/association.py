@@ -45,6 +45,26 @@ def centroid_distance(det: Boxes, cands: Boxes):
     return np.linalg.norm(cands.center - det.center[0], axis=-1)
 
 
+def within_reach(center: np.ndarray, radius, centers: np.ndarray, radii: np.ndarray, reach: float) -> np.ndarray:
+    """(M,) bool: boxes (centres (M, 3), half diagonals (M,)) that may lie within ``reach`` metres
+    of a box (centre (3,), half diagonal): those whose centres are within the sum of half diagonals
+    plus ``reach`` (and a micrometre for rounding).
+
+    Every corner of a box is its half diagonal from its centre, so a mean distance of corresponding
+    corners (eq. 2, on any subset of pairs) is at least the distance of the centres less both half
+    diagonals; two boxes that share a point, or whose footprints come within a gap at a common
+    height, are within that reach too. A box left out can thus not match by distance, containment
+    or adjoining: the candidates kept decide alone, as they did among all (issue 11: a frame's
+    detections each compared with every object in view cost quadratic time).
+    """
+    return np.linalg.norm(centers - center, axis=1) <= radius + radii + reach + 1e-6
+
+
+def half_diagonals(size: np.ndarray) -> np.ndarray:
+    """(M,) the distance from each box's centre (size (M, 3)) to its corners."""
+    return np.linalg.norm(size, axis=1) / 2
+
+
 def thresholds_for(det_class: int, cand_classes: np.ndarray, same: float, other: float) -> np.ndarray:
     """The match threshold (M,) per candidate: looser when the top classes agree."""
     return np.where(cand_classes == det_class, same, other)
@@ -84,13 +104,18 @@ def containment(det: Boxes, cands: Boxes) -> np.ndarray:
     return area * dz / vol if vol > 0 else np.zeros(m)
 
 
-def pairwise_containment(boxes: Boxes) -> np.ndarray:
-    """(M, M) matrix whose [i, j] is the fraction of box i's volume inside box j (diagonal 1)."""
+def pairwise_containment(boxes: Boxes, near: np.ndarray | None = None) -> np.ndarray:
+    """(M, M) matrix whose [i, j] is the fraction of box i's volume inside box j (diagonal 1).
+
+    ``near`` (M, M) bool: the pairs that may overlap (:func:`within_reach`); the others are 0
+    without clipping their footprints."""
     m = len(boxes)
     out = np.eye(m)
     if m < 2:
         return out
     i, j = np.triu_indices(m, k=1)
+    if near is not None:
+        i, j = i[near[i, j]], j[near[i, j]]
     foot = boxes.corners[:, :4, :2]
     area = convex_intersection_area(foot[i], foot[j])
     z0 = boxes.center[:, 2] - boxes.size[:, 2] / 2
@@ -140,7 +165,7 @@ def containing_candidate(inside: np.ndarray, same_class: np.ndarray, need_same: 
 
 def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other: float,
                     need_same: float | None, need_other: float | None,
-                    other_volume_ratio: float | None = None) -> list[tuple[float, int, int]]:
+                    other_volume_ratio: float | None = None, reach: float | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -148,12 +173,21 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     under the threshold of their classes, or, with containment on, when one lies mostly inside the
     other (one object seen in parts); objects of different classes only when of similar volume
     (``other_volume_ratio``, :func:`similar_volume`).
+
+    ``reach``: the metric's distance is never less than the boxes' centre distance less their half
+    diagonals (:func:`within_reach`); then only pairs within ``reach`` metres beyond that are
+    compared (the same pairs result). None: every pair.
     """
     m = len(boxes)
     if m < 2:
         return []
+    near = None
+    if reach is not None:
+        radii = half_diagonals(boxes.size)
+        near = np.linalg.norm(boxes.center[:, None] - boxes.center[None], axis=-1) <= \
+            radii[:, None] + radii[None] + max(same, other, reach) + 1e-6  # within_reach, all pairs at once
     if need_same:
-        inside = pairwise_containment(boxes)
+        inside = pairwise_containment(boxes, near)
         inside = np.maximum(inside, inside.T)  # either one inside the other
         vol = np.prod(boxes.size, axis=1)
         other_ok = np.where(similar_volume(vol[:, None], vol[None, :], other_volume_ratio), need_other or np.inf, np.inf)
@@ -162,6 +196,10 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     pairs = []
     for a in range(m - 1):
         rest = np.arange(a + 1, m)
+        if near is not None:
+            rest = rest[near[a, rest]]
+            if rest.size == 0:
+                continue
         dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
         close = dist <= thresholds_for(int(top[a]), top[rest], same, other)
         if need_same:
