@@ -87,3 +87,30 @@ def test_boxes_take_and_corners_shape():
     b = Boxes(np.zeros((3, 3)), np.zeros(3), np.ones((3, 3)), np.zeros((3, 8), bool))
     assert b.corners.shape == (3, 8, 3)
     assert len(b.take([0, 2])) == 2
+
+
+def test_box_corners_bit_for_bit_those_of_rotating_each_signed_half_size():
+    # The reference is the plain formula on (..., 8, 3) arrays, which box_corners computed before
+    # it was made faster (issue 11): the exports must not change by one bit, signed zeros included.
+    from ltc_cli.geometry.boxes import CORNER_SIGNS
+
+    def reference(center, yaw, size):
+        center, size, yaw = (np.asarray(a, dtype=np.float64) for a in (center, size, yaw))
+        local = CORNER_SIGNS * (size[..., None, :] / 2.0)
+        c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
+        x = c * local[..., 0] - s * local[..., 1]
+        y = s * local[..., 0] + c * local[..., 1]
+        return np.stack([x, y, local[..., 2]], axis=-1) + center[..., None, :]
+
+    rng = np.random.default_rng(4)
+    n = 20000
+    center = rng.normal(0, 50, (n, 3))
+    yaw = rng.uniform(-4, 4, n)
+    size = rng.uniform(0, 3, (n, 3))
+    yaw[:2000] = rng.choice([0.0, -0.0, np.pi / 2, -np.pi / 2, np.pi, np.pi / 4], 2000)
+    center[2000:4000] = rng.choice([0.0, -0.0, 1.0], (2000, 3))
+    size[4000:6000] = rng.choice([0.0, 1.0, 2.0], (2000, 3))
+    got, want = box_corners(center, yaw, size), reference(center, yaw, size)
+    assert got.shape == want.shape and got.tobytes() == want.tobytes()
+    for args in [([0, 0, 1], 0.0, [2, 1, 2]), ([-0.0, 0.0, -0.0], -0.0, [0, 0, 0]), (center[:5], 0.3, [1, 2, 3])]:
+        assert box_corners(*args).tobytes() == reference(*args).tobytes()
