@@ -49,7 +49,7 @@ def export_chunks(smap: SemanticMap, fmt: str, origin=None, map_path=None, chunk
         if start + k == n:
             sep[1][-1, 0] = False
         with paused_gc():
-            yield jt.pack(jt.cat(jt.lit("  "), line(part, names), sep))
+            yield jt.pack(line(part, names, jt.lit("  "), sep))
     yield tail.encode("utf-8")
 
 
@@ -69,26 +69,27 @@ def _common(cols, names):
             jt.lit(',"yaw":'), jt.decimals(cols["yaw"], d), jt.lit(',"size":'), jt.seq(jt.decimals(cols["size"], d)))
 
 
-def _json_line(cols, names):
+def _json_line(cols, names, lead, sep):
+    """The objects' lines, ``lead`` before and ``sep`` after each (one cat: no copy of the lines)."""
     d = VALUE_DECIMALS
-    return jt.cat(*_common(cols, names), jt.lit(',"corners":'), jt.seq(jt.seq(jt.decimals(cols["corners"], d))),
+    return jt.cat(lead, *_common(cols, names), jt.lit(',"corners":'), jt.seq(jt.seq(jt.decimals(cols["corners"], d))),
                   jt.lit(',"visible":'), jt.seq(jt.booleans(cols["visible"])),
                   jt.lit(',"defined":'), jt.booleans(cols["defined"]), jt.lit(',"n_det":'), jt.integers(cols["n_det"]),
-                  jt.lit(',"n_nondet":'), jt.integers(cols["n_nondet"]), *_seen(cols), jt.lit("}"))
+                  jt.lit(',"n_nondet":'), jt.integers(cols["n_nondet"]), *_seen(cols), jt.lit("}"), sep)
 
 
-def _geojson_line(cols, names):
+def _geojson_line(cols, names, lead, sep):
     d = VALUE_DECIMALS
     places = METRE_DECIMALS if cols["bearing"] is None else DEG_DECIMALS
     bearing = () if cols["bearing"] is None else (jt.lit(',"x_axis_bearing_deg":'), jt.decimals(cols["bearing"], d))
-    return jt.cat(jt.lit('{"type":"Feature","id":'), jt.integers(cols["id"]),
+    return jt.cat(lead, jt.lit('{"type":"Feature","id":'), jt.integers(cols["id"]),
                   jt.lit(',"geometry":{"type":"Polygon","coordinates":['),
                   jt.seq(jt.seq(jt.decimals(cols["coords"], places))), jt.lit(']},"properties":'),
                   *_common(cols, names), jt.lit(',"z_min":'), jt.decimals(cols["z_min"], d),
                   jt.lit(',"z_max":'), jt.decimals(cols["z_max"], d), jt.lit(',"height":'),
                   jt.decimals(cols["size"][:, 2], d), jt.lit(',"defined":'), jt.booleans(cols["defined"]),
                   jt.lit(',"n_det":'), jt.integers(cols["n_det"]), jt.lit(',"n_nondet":'),
-                  jt.integers(cols["n_nondet"]), *_seen(cols), *bearing, jt.lit("}}"))
+                  jt.integers(cols["n_nondet"]), *_seen(cols), *bearing, jt.lit("}}"), sep)
 
 
 def write_export(path, chunks) -> None:

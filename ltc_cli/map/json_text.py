@@ -194,5 +194,10 @@ def seq(field, keys: list[str] | None = None):
 def pack(field) -> bytes:
     """The text of every record, one after the other."""
     chars, mask = field
-    # np.compress on the flat arrays: the same bytes as chars[mask], three times faster.
-    return np.compress(mask.ravel(), chars.ravel()).tobytes()
+    # np.compress, a few hundred records at a time: the same bytes as chars[mask], in a third of the
+    # time (boolean indexing is slow on bytes), with an index array of a few MB, not 8 bytes per
+    # character of the whole chunk.
+    chars, mask = chars.reshape(-1, chars.shape[-1]), mask.reshape(-1, mask.shape[-1])
+    step = max(1, (1 << 19) // max(1, chars.shape[1]))
+    return b"".join(np.compress(mask[i:i + step].ravel(), chars[i:i + step].ravel()).tobytes()
+                    for i in range(0, len(chars), step))
