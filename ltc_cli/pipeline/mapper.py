@@ -228,7 +228,7 @@ class Mapper:
             return -1, False
         a_cfg, t = self.cfg["association"], self.map.objects
         reach = self._reach()
-        if reach is not None:  # only the candidates that can match decide (the same decision)
+        if reach is not None and rows.size > 8:  # only those that can match decide (the same decision)
             rows = rows[within_reach(det.center[0], half_diagonals(det.size)[0], t.center[rows],
                                      half_diagonals(t.size[rows]), reach)]
             if rows.size == 0:
