@@ -57,7 +57,6 @@ _TRAILING = np.array([3 if i == 0 else len(f"{i:03d}") - len(f"{i:03d}".rstrip("
 # Group masks by code = 8 * lead byte shown + 4 * (digits kept on the left, not the right) + digits kept.
 _MASKS = np.array([[lead] + ([True] * n + [False] * (3 - n) if left else [False] * (3 - n) + [True] * n)
                    for lead in (0, 1) for left in (0, 1) for n in range(4)], bool).view(np.uint32)[:, 0]
-_POW10 = 10 ** np.arange(19, dtype=np.int64)
 
 
 def _triples(m, groups: int) -> list:
@@ -79,8 +78,14 @@ def _triples(m, groups: int) -> list:
 
 
 def _n_digits(m):
-    """How many digits non-negative integers m have (at least 1)."""
-    return np.searchsorted(_POW10[1:], m, side="right") + 1
+    """How many digits non-negative integers m have (at least 1): one comparison per digit of the
+    largest (the whole parts here have one to three), cheaper than a search per number."""
+    n = np.ones(np.shape(m), np.intp)
+    top, p = int(np.max(m, initial=0)), 10
+    while p <= top:
+        n += m >= p
+        p *= 10
+    return n
 
 
 def _whole_codes(n_digits, negative, groups: int) -> list:

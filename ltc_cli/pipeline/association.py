@@ -60,6 +60,16 @@ def within_reach(center: np.ndarray, radius, centers: np.ndarray, radii: np.ndar
     return np.linalg.norm(centers - center, axis=1) <= radius + radii + reach + 1e-6
 
 
+def match_reach(metric, a_cfg: dict) -> float | None:
+    """How far (metres beyond both half diagonals, :func:`within_reach`) a map object may lie from
+    a box and still match it by distance, containment or adjoining, for a ``metric`` that declares
+    ``center_bound`` (its distance is never less than the centres' distance less both half
+    diagonals); None: any distance (a metric that does not say so)."""
+    if not getattr(metric, "center_bound", False):
+        return None
+    return max(a_cfg["threshold_same_class"], a_cfg["threshold_other_class"], a_cfg["partial_adjoin_gap"] or 0.0)
+
+
 def half_diagonals(size: np.ndarray) -> np.ndarray:
     """(M,) the distance from each box's centre (size (M, 3)) to its corners."""
     return np.linalg.norm(size, axis=1) / 2

@@ -18,7 +18,7 @@ from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, duplicate_pairs, greedy_merges, half_diagonals,
-    nearest_under_threshold, similar_volume, thresholds_for, within_reach,
+    match_reach, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
 from ltc_cli.pipeline.maintenance import (
@@ -227,7 +227,7 @@ class Mapper:
         if rows.size == 0:
             return -1, False
         a_cfg, t = self.cfg["association"], self.map.objects
-        reach = self._reach()
+        reach = match_reach(self.metric, a_cfg)
         if reach is not None and rows.size > 8:  # only those that can match decide (the same decision)
             rows = rows[within_reach(det.center[0], half_diagonals(det.size)[0], t.center[rows],
                                      half_diagonals(t.size[rows]), reach)]
@@ -250,15 +250,6 @@ class Mapper:
             best = adjoining_partial(footprint_gaps(det, cand), cand_classes == det_class, ~t.defined[rows],
                                      a_cfg["partial_adjoin_gap"])
         return (int(rows[best]), True) if best >= 0 else (-1, False)
-
-    def _reach(self) -> float | None:
-        """How far (metres beyond both half diagonals) a candidate may lie and still match a box
-        by distance, containment or adjoining, for a metric that declares ``center_bound`` (its
-        distance is never less than the centre distance less both half diagonals); None: any."""
-        if not getattr(self.metric, "center_bound", False):
-            return None
-        a_cfg = self.cfg["association"]
-        return max(a_cfg["threshold_same_class"], a_cfg["threshold_other_class"], a_cfg["partial_adjoin_gap"] or 0.0)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range):
         """(missed (M,), clear (M,), empty (M,)) bool over in-view rows: which get a non-detection,
@@ -394,7 +385,7 @@ class Mapper:
         pairs = duplicate_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance,
                                 a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                                 a_cfg["containment"], a_cfg["containment_other_class"],
-                                a_cfg["other_class_volume_ratio"], self._reach())
+                                a_cfg["other_class_volume_ratio"], match_reach(self.metric, a_cfg))
         merges = greedy_merges(pairs, rows + 1)
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
