@@ -84,3 +84,56 @@ def test_a_second_writer_gets_a_clear_error(tmp_path):
     # Released when the holder ends (even when killed): the lock can be taken again.
     MapLock(path).acquire().release()
     assert os.path.exists(str(path) + ".lock")
+
+
+def _same_maps(a, b):
+    assert a.classes == b.classes and a.created == b.created
+    np.testing.assert_array_equal(a.up_rotation, b.up_rotation)
+    ca, cb = a.objects.columns(), b.objects.columns()
+    assert ca.keys() == cb.keys()
+    for k in ca:
+        np.testing.assert_array_equal(ca[k], cb[k], err_msg=k)
+    assert a.events == b.events and a.sessions == b.sessions and a.frame_keys == b.frame_keys
+
+
+def _grow(smap, rng, step):
+    """One checkpoint's worth of change: new events (one with a longer detail text than any
+    before, so its column is recreated wider), new frame keys, the last session row updated (a new
+    one every third step), old objects changed and new ones added."""
+    for i in range(int(rng.integers(0, 40))):
+        smap.events.append(Event(step, i, f"rec{step}/{i:06d}", "updated", int(rng.integers(1, 9)), 0,
+                                 "x" * int(rng.integers(0, 3 + step))))
+        smap.frame_keys.add(f"rec{step}/{i:06d}")
+    if step % 3 == 0:
+        smap.sessions.append(dict(small_map().sessions[0], status="interrupted", frames_done=0))
+    smap.sessions[-1]["frames_done"] += 7
+    smap.sessions[-1]["settings"] = {"step": step, "long": "y" * step}
+    if smap.objects.n:
+        rows = rng.integers(0, smap.objects.n, 3)
+        smap.objects.cols["center"][rows] += 0.25
+        smap.objects.cols["n_det"][rows] += 1
+    for _ in range(int(rng.integers(0, 30))):
+        smap.objects.append(center=rng.normal(size=3), yaw=float(rng.uniform()), size=[1, 1, 1],
+                            visible=np.ones(8, bool), defined=True, scores=rng.dirichlet(np.ones(3)), n_det=1)
+
+
+def test_commits_in_place_load_as_a_whole_rewrite_does(tmp_path):
+    """Twenty checkpoints of a growing map, committed in place, load after each one exactly as the
+    same map written whole (a second file, in_place=False): objects, events, sessions, frames."""
+    rng = np.random.default_rng(11)
+    smap = small_map()
+    inc, whole = tmp_path / "inc.h5", tmp_path / "whole.h5"
+    save_map(smap, inc)
+    inode = os.stat(inc).st_ino
+    for step in range(1, 21):
+        _grow(smap, rng, step)
+        save_map(smap, inc)
+        save_map(smap, whole, in_place=False)
+        assert os.stat(inc).st_ino == inode  # written in place, not replaced by a new file
+        _same_maps(load_map(inc), load_map(whole))
+        back = load_map(inc)
+        assert back.events == smap.events and back.frame_keys == smap.frame_keys
+        assert back.sessions[-1]["frames_done"] == smap.sessions[-1]["frames_done"]
+    assert not os.path.exists(str(inc) + "-journal")
+    with h5py.File(inc) as f:  # plain HDF5 still
+        assert f["events/kind"].shape == (len(smap.events),)
