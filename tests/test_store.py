@@ -7,6 +7,7 @@ import pytest
 
 from ltc_cli.errors import MapFormatError, MapLockedError
 from ltc_cli.map.model import ACTIVE, Event, SemanticMap
+from ltc_cli.map import store_write
 from ltc_cli.map.store import MapLock, load_map, save_map
 
 
@@ -117,9 +118,13 @@ def _grow(smap, rng, step):
                             visible=np.ones(8, bool), defined=True, scores=rng.dirichlet(np.ones(3)), n_det=1)
 
 
-def test_commits_in_place_load_as_a_whole_rewrite_does(tmp_path):
+@pytest.mark.parametrize("chunk_bytes", [None, 256], ids=["default", "tiny-chunks"])
+def test_commits_in_place_load_as_a_whole_rewrite_does(tmp_path, monkeypatch, chunk_bytes):
     """Twenty checkpoints of a growing map, committed in place, load after each one exactly as the
-    same map written whole (a second file, in_place=False): objects, events, sessions, frames."""
+    same map written whole (a second file, in_place=False): objects, events, sessions, frames.
+    With tiny chunks every column is chunked (appends, changed chunks, wider text recreated)."""
+    if chunk_bytes:
+        monkeypatch.setattr(store_write, "CHUNK_BYTES", chunk_bytes)
     rng = np.random.default_rng(11)
     smap = small_map()
     inc, whole = tmp_path / "inc.h5", tmp_path / "whole.h5"
@@ -137,3 +142,4 @@ def test_commits_in_place_load_as_a_whole_rewrite_does(tmp_path):
     assert not os.path.exists(str(inc) + "-journal")
     with h5py.File(inc) as f:  # plain HDF5 still
         assert f["events/kind"].shape == (len(smap.events),)
+        assert (f["events/session"].chunks is not None) == bool(chunk_bytes)

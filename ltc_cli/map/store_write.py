@@ -57,7 +57,12 @@ def text_array(values: list[str]) -> np.ndarray:
 
 
 def _column(group, name: str, data: np.ndarray) -> None:
-    """A resizable, chunked per-row dataset."""
+    """A per-row dataset: contiguous while under CHUNK_BYTES (rewritten whole when it changes),
+    else chunked and resizable. A chunked dataset costs a B-tree node of about 2.5 KB (libver v108),
+    which would make a small map's file several times larger."""
+    if data.nbytes < CHUNK_BYTES:
+        group.create_dataset(name, data=data, dtype=data.dtype)
+        return
     row_bytes = data.dtype.itemsize * int(np.prod(data.shape[1:], dtype=np.int64))
     group.create_dataset(name, data=data, dtype=data.dtype, maxshape=(None,) + data.shape[1:],
                          chunks=(chunk_rows(len(data), row_bytes),) + data.shape[1:])
@@ -139,21 +144,27 @@ def _put(group, name: str, rows: np.ndarray, start: int, whole) -> None:
     """Rows ``start:`` of dataset ``name`` become ``rows`` (its length start + len(rows)); a
     text column too narrow for them is recreated from ``whole()``."""
     ds = group[name]
-    if ds.dtype.kind == "S" and rows.dtype.itemsize > ds.dtype.itemsize:
-        del group[name]
+    n = start + len(rows)
+    if n == ds.shape[0] and not len(rows):
+        return
+    if ds.chunks is None or (ds.dtype.kind == "S" and rows.dtype.itemsize > ds.dtype.itemsize):
+        del group[name]  # small, or text that needs a wider width: written anew
         _column(group, name, whole())
         return
-    n = start + len(rows)
-    if ds.chunks is None or (n > 256 * ds.chunks[0] and ds.chunks[0] * ds.dtype.itemsize < CHUNK_BYTES // 2):
-        raise _Rewrite  # contiguous (an older file), or chunks now far too small for its length
+    if n > 256 * ds.chunks[0] and ds.chunks[0] * ds.dtype.itemsize < CHUNK_BYTES // 2:
+        raise _Rewrite  # chunks now far too small for its length
     if n != ds.shape[0]:
         ds.resize((n,) + ds.shape[1:])
     if len(rows):
         ds[start:n] = rows
 
 
-def _rows_as_bytes(arr: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(arr).reshape(len(arr), -1).view(np.uint8)
+def _changed_rows(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """Rows whose bytes differ (so -0.0 against 0.0 counts, and NaN against NaN does not)."""
+    if not len(old):
+        return np.zeros(0, np.int64)
+    a, b = (np.ascontiguousarray(x).reshape(len(x), -1).view(np.uint8) for x in (old, new))
+    return np.flatnonzero((a != b).any(axis=1))
 
 
 def _write_objects(og, smap: SemanticMap, rec: Committed) -> None:
@@ -161,8 +172,12 @@ def _write_objects(og, smap: SemanticMap, rec: Committed) -> None:
         old = rec.objects[name]
         n_old = len(old)
         ds = og[name]
-        changed = np.flatnonzero((_rows_as_bytes(old) != _rows_as_bytes(arr[:n_old])).any(axis=1))
-        chunk = ds.chunks[0] if ds.chunks else 1
+        changed = _changed_rows(old, arr[:n_old])
+        if ds.chunks is None:
+            if changed.size or len(arr) > n_old:
+                _put(og, name, arr, 0, lambda a=arr: a)
+            continue
+        chunk = ds.chunks[0]
         for c in np.unique(changed // chunk).tolist():  # whole chunks: one write each
             lo, hi = c * chunk, min((c + 1) * chunk, n_old)
             ds[lo:hi] = arr[lo:hi]
