@@ -2,9 +2,12 @@
 fall, and SIGKILLs its own process at one of them: deterministic, reproducible kill points, with no
 timing involved.
 
-Points: each frame's detection (between frames), and inside every commit: the temporary file
-created, its space reserved, half of it written (a torn file), fsync-ed, just before and just
-after ``os.replace``. ``LTC_TEST_EVENTS=FILE`` appends each point's name to FILE as it is reached;
+Points: each frame's detection (between frames), and inside every commit. A whole commit: the
+temporary file created, its space reserved, half of it written (a torn file), fsync-ed, just before
+and just after ``os.replace``. A commit in place (ltc_cli/map/journal.py): the journal created,
+half of it written, after each fsync (the journal, the folder, the map), the growth reserved, half
+the in-place writes done (the middle one torn), just before and just after the truncation to the
+new length, just before and just after the journal's unlink (the commit point). ``LTC_TEST_EVENTS=FILE`` appends each point's name to FILE as it is reached;
 ``LTC_TEST_KILL_AT=N`` kills the process at the N-th point (1-based).
 """
 
@@ -12,6 +15,7 @@ import os
 import signal
 
 import ltc_cli.fileio as fileio
+import ltc_cli.map.journal as journal
 from ltc_plugins.recorded import RecordedDetector
 
 _count = 0
@@ -68,7 +72,61 @@ class _OsAtPoints:
             _die()
 
 
+class _JournalOsAtPoints:
+    """``os`` as the journal module sees it: the in-place commit's steps."""
+
+    def __getattr__(self, name):
+        return getattr(os, name)
+
+    def open(self, path, flags, *args):
+        if flags & os.O_CREAT and _point("journal created"):
+            _die()
+        return os.open(path, flags, *args)
+
+    def write(self, fd, data):  # only the journal is written with os.write
+        if _point("journal half written"):
+            os.write(fd, bytes(data[: len(data) // 2]))
+            _die()
+        return os.write(fd, data)
+
+    def fsync(self, fd):
+        os.fsync(fd)
+        if _point("after fsync (journal, folder or map)"):
+            _die()
+
+    def posix_fallocate(self, fd, offset, size):
+        os.posix_fallocate(fd, offset, size)
+        if _point("growth reserved"):
+            _die()
+
+    def ftruncate(self, fd, size):
+        if _point("before truncate"):
+            _die()
+        os.ftruncate(fd, size)
+        if _point("after truncate"):
+            _die()
+
+    def unlink(self, path):
+        if _point("before journal unlink"):
+            _die()
+        os.unlink(path)
+        if _point("after journal unlink"):
+            _die()
+
+
+def _write_runs_at_point(fd, runs):
+    if _point("in place, half written"):
+        half = len(runs) // 2
+        off, data = runs[half]
+        _write_runs(fd, runs[:half] + [(off, data[: len(data) // 2])])
+        _die()
+    _write_runs(fd, runs)
+
+
 fileio.os = _OsAtPoints()
+journal.os = _JournalOsAtPoints()
+_write_runs = journal.write_runs
+journal.write_runs = _write_runs_at_point
 _detect = RecordedDetector.detect
 
 
