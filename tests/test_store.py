@@ -1,5 +1,8 @@
+import fcntl
 import multiprocessing as mp
 import os
+import threading
+import time
 
 import h5py
 import numpy as np
@@ -7,8 +10,9 @@ import pytest
 
 from ltc_cli.errors import MapFormatError, MapLockedError
 from ltc_cli.map.model import ACTIVE, Event, SemanticMap
-from ltc_cli.map import store_write
+from ltc_cli.map import journal, store_write
 from ltc_cli.map.store import MapLock, load_map, save_map
+from tests.reliability import remount_read_only, tmpfs
 
 
 def small_map():
@@ -143,3 +147,112 @@ def test_commits_in_place_load_as_a_whole_rewrite_does(tmp_path, monkeypatch, ch
     with h5py.File(inc) as f:  # plain HDF5 still
         assert f["events/kind"].shape == (len(smap.events),)
         assert (f["events/session"].chunks is not None) == bool(chunk_bytes)
+
+
+class _DiesBeforeTheCommitPoint:
+    """``os`` for the journal module of a writer killed just before it unlinks its journal."""
+
+    def __getattr__(self, name):
+        return getattr(os, name)
+
+    def unlink(self, path):
+        os._exit(9)
+
+
+def _torn_commit(path, saved):
+    """In a child: commit a map (whole), keep a copy of the file in ``saved``, then commit a
+    changed map in place and die just before the commit point (every byte written)."""
+    smap = small_map()
+    save_map(smap, path)
+    saved.write_bytes(path.read_bytes())
+    smap.events.append(Event(1, 5, "abc/000005", "updated", 1, 0, "a longer detail than before"))
+    smap.frame_keys.add("abc/000005")
+    smap.sessions[0]["frames_done"] = 2
+    smap.objects.cols["center"][0] = [3, 3, 3]
+    journal.os = _DiesBeforeTheCommitPoint()
+    save_map(smap, path)
+    os._exit(0)  # not reached
+
+
+def _kill_a_commit(path, saved):
+    p = mp.get_context("fork").Process(target=_torn_commit, args=(path, saved))
+    p.start()
+    p.join(60)
+    assert p.exitcode == 9
+    assert os.path.exists(f"{path}-journal") and path.read_bytes() != saved.read_bytes()
+
+
+def test_a_hot_journal_is_rolled_back_by_the_next_reader(tmp_path):
+    path, saved = tmp_path / "m.h5", tmp_path / "saved.bin"
+    _kill_a_commit(path, saved)
+    back = load_map(path)
+    assert back.frame_keys == {"abc/000004"} and back.events == small_map().events
+    assert path.read_bytes() == saved.read_bytes()  # byte for byte the previous commit
+    assert not os.path.exists(f"{path}-journal")
+
+
+def test_an_incomplete_journal_is_removed_and_the_map_left_as_it_is(tmp_path):
+    path = tmp_path / "m.h5"
+    save_map(small_map(), path)
+    before = path.read_bytes()
+    jp = tmp_path / "m.h5-journal"
+    jp.write_bytes(b"LTCJRNL1" + bytes(100))  # its checksum does not hold: never completed
+    assert load_map(path).frame_keys == {"abc/000004"}
+    assert not jp.exists() and path.read_bytes() == before
+
+
+def test_a_hot_journal_in_a_read_only_folder_is_read_around(tmp_path):
+    """The journal cannot be rolled back where nothing can be written: ltc reads the map as the
+    journal restores it, in memory, and leaves both files for a writer."""
+    with tmpfs(tmp_path / "fs", 1024) as fs:
+        path, saved = fs / "m.h5", tmp_path / "saved.bin"
+        _kill_a_commit(path, saved)
+        torn = path.read_bytes()
+        remount_read_only(fs)
+        back = load_map(path)
+        assert back.frame_keys == {"abc/000004"} and back.events == small_map().events
+        np.testing.assert_array_equal(back.objects.center, [[1, 2, 0.5]])
+        assert path.read_bytes() == torn and os.path.exists(f"{path}-journal")
+
+
+def _hold_shared(path, ready, release):
+    fd = os.open(path, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_SH)  # as load_map holds it while it reads
+    ready.set()
+    release.wait(30)
+    os.close(fd)
+
+
+def _waiting_for_a_lock(inode: int) -> bool:
+    with open("/proc/locks") as fh:  # "N: -> FLOCK ADVISORY WRITE pid maj:min:inode ...": a blocked request
+        return any("->" in ln and ln.split()[6].endswith(f":{inode}") for ln in fh)
+
+
+def test_a_commit_in_place_waits_for_readers(tmp_path):
+    """While an ltc reader holds the map, an in-place commit waits before it writes anything (not
+    even its journal): the reader sees whole commits only."""
+    path = tmp_path / "m.h5"
+    smap = small_map()
+    save_map(smap, path)
+    smap.frame_keys.add("abc/000005")
+    before = path.read_bytes()
+    ctx = mp.get_context("fork")
+    ready, release = ctx.Event(), ctx.Event()
+    reader = ctx.Process(target=_hold_shared, args=(path, ready, release))
+    reader.start()
+    try:
+        assert ready.wait(30)
+        writer = threading.Thread(target=save_map, args=(smap, path))
+        writer.start()
+        for _ in range(3000):  # until the writer's lock request is queued behind the reader's
+            if _waiting_for_a_lock(os.stat(path).st_ino):
+                break
+            time.sleep(0.01)
+        else:
+            pytest.fail("the commit never waited for the reader")
+        assert path.read_bytes() == before and not os.path.exists(f"{path}-journal")
+    finally:
+        release.set()
+        reader.join(30)
+    writer.join(30)
+    assert load_map(path).frame_keys == {"abc/000004", "abc/000005"}
