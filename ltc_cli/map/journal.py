@@ -228,9 +228,11 @@ def commit(path, fd: int, old_length: int, runs: list[tuple[int, bytes]], new_le
     try:
         try:
             _write_journal(jpath, journal)
-        except BaseException:
+        except BaseException as exc:
             with contextlib.suppress(OSError):
                 os.unlink(jpath)  # never complete: the map is untouched
+            if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
+                raise NoSpaceError(len(journal) + growth, free_bytes(path.parent), path) from None
             raise
         try:
             if growth and hasattr(os, "posix_fallocate"):
@@ -239,9 +241,11 @@ def commit(path, fd: int, old_length: int, runs: list[tuple[int, bytes]], new_le
             if new_length != old_length:
                 os.ftruncate(fd, new_length)
             os.fsync(fd)
-        except BaseException:
+        except BaseException as exc:
             _roll_back(fd, old_length, originals)
             _unlink(jpath)
+            if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
+                raise NoSpaceError(len(journal) + growth, free_bytes(path.parent), path) from None
             raise
         _unlink(jpath)  # the commit point
     finally:

@@ -36,7 +36,8 @@ from ltc_cli.fileio import (NoSpaceError, free_bytes, remove_temp_files, stale_t
 from ltc_cli.map import journal
 from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT, REQUIRED, check_map_arrays
 from ltc_cli.map.model import ADDED_COLUMNS, COLUMNS, Event, ObjectTable, SemanticMap
-from ltc_cli.map.store_write import FORMAT, SESSION_COLUMNS, VERSION, committed, map_image, write_changes
+from ltc_cli.map.store_write import (FORMAT, SESSION_COLUMNS, VERSION, commit_in_place, committed, file_ident,
+                                    map_image)
 
 __all__ = ["FORMAT", "VERSION", "SESSION_COLUMNS", "MapLock", "load_map", "save_map", "map_image", "check_map_file",
            "check_writable", "orphan_temp_files", "resolve_map_path"]
@@ -364,10 +365,6 @@ def load_map(path, events: bool = True) -> SemanticMap:
     )
 
 
-def _ident(st: os.stat_result) -> tuple:
-    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
-
-
 def _commit_failed(path: Path, exc: OSError, size: int) -> MapWriteError:
     if isinstance(exc, NoSpaceError):
         return _no_space(path, exc.need, exc.free)
@@ -378,37 +375,6 @@ def _commit_failed(path: Path, exc: OSError, size: int) -> MapWriteError:
     if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
         return _folder_not_writable(path.parent, exc)
     return MapWriteError(f"cannot commit ({exc.strerror}); the map is unchanged", path)
-
-
-def _commit_in_place(smap: SemanticMap, path: Path, rec) -> bool:
-    """Commit only what changed since ``rec`` (module docstring); False, with nothing written,
-    when the whole file must be written instead."""
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CLOEXEC)
-    except OSError:
-        return False  # the whole commit says what is wrong
-    try:
-        st = os.fstat(fd)
-        if _ident(st) != rec.ident:
-            return False  # changed since this process committed it
-        view = journal.Overlay(fd, st.st_size)
-        try:
-            with h5py.File(view, "r+") as f:
-                if not write_changes(f, smap, rec):
-                    return False
-        except (OSError, ValueError, KeyError, TypeError, RuntimeError):  # only the overlay was written
-            return False
-        runs = view.changes()
-        try:
-            journal.commit(path, fd, st.st_size, runs, view.length)
-        except OSError as exc:
-            if not journal.journal_path(path).exists():  # rolled back: the file is the last commit
-                rec.ident = _ident(os.fstat(fd))
-            raise _commit_failed(path, exc, sum(len(d) for _, d in runs)) from None
-        rec.ident = _ident(os.fstat(fd))
-        return True
-    finally:
-        os.close(fd)
 
 
 def save_map(smap: SemanticMap, path, in_place: bool = True) -> None:
@@ -424,17 +390,16 @@ def save_map(smap: SemanticMap, path, in_place: bool = True) -> None:
     rec = _committed.pop(str(path), None)
     if in_place and rec is not None and rec.smap() is smap:
         try:
-            done = _commit_in_place(smap, path, rec)
-        except MapWriteError:
-            _committed[str(path)] = rec
-            raise
+            done = commit_in_place(smap, path, rec)
+        except OSError as exc:
+            _committed[str(path)] = rec  # rolled back (or left for recovery): rec.ident says which
+            raise _commit_failed(path, exc, 0) from None
         if done:
-            rec.__dict__.update(committed(smap, rec.ident).__dict__)
-            _committed[str(path)] = rec
+            _committed[str(path)] = committed(smap, rec.ident)
             return
     image = map_image(smap)
     try:
         write_bytes_atomic(path, image)
     except OSError as exc:
         raise _commit_failed(path, exc, len(image)) from None
-    _committed[str(path)] = committed(smap, _ident(os.stat(path)))
+    _committed[str(path)] = committed(smap, file_ident(os.stat(path)))

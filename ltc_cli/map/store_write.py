@@ -24,6 +24,7 @@ import h5py
 import numpy as np
 
 from ltc_cli import __version__
+from ltc_cli.map import journal
 from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT
 from ltc_cli.map.model import SemanticMap
 
@@ -215,3 +216,38 @@ def write_changes(f: h5py.File, smap: SemanticMap, rec: Committed) -> bool:
     if f.attrs.get("ltc_version") != np.bytes_(__version__):
         f.attrs["ltc_version"] = np.bytes_(__version__)
     return True
+
+
+def file_ident(st: os.stat_result) -> tuple:
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
+
+
+def commit_in_place(smap: SemanticMap, path, rec: Committed) -> bool:
+    """Commit to map file ``path`` only what changed since ``rec``: HDF5 writes into a
+    journal.Overlay of the file, journal.commit writes the result in place. False, with nothing
+    written, when the whole file must be written instead. Raises OSError (NoSpaceError for a
+    full disk) with the file as it was (``rec.ident`` updated) or, if even the rollback failed,
+    with its journal left for journal.recover."""
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CLOEXEC)
+    except OSError:
+        return False  # the whole commit says what is wrong
+    try:
+        st = os.fstat(fd)
+        if file_ident(st) != rec.ident:
+            return False  # changed since this process committed it
+        view = journal.Overlay(fd, st.st_size)
+        try:
+            with h5py.File(view, "r+") as f:
+                if not write_changes(f, smap, rec):
+                    return False
+        except (OSError, ValueError, KeyError, TypeError, RuntimeError):  # only the overlay was written
+            return False
+        try:
+            journal.commit(path, fd, st.st_size, view.changes(), view.length)
+        finally:
+            if not journal.journal_path(path).exists():  # committed, or rolled back
+                rec.ident = file_ident(os.fstat(fd))
+        return True
+    finally:
+        os.close(fd)
