@@ -5,10 +5,11 @@ timing involved.
 Points: each frame's detection (between frames), and inside every commit. A whole commit: the
 temporary file created, its space reserved, half of it written (a torn file), fsync-ed, just before
 and just after ``os.replace``. A commit in place (ltc_cli/map/journal.py): the journal created,
-half of it written, after each fsync (the journal, the folder, the map), the growth reserved, half
-the in-place writes done (the middle one torn), just before and just after the truncation to the
-new length, just before and just after the journal's unlink (the commit point). ``LTC_TEST_EVENTS=FILE`` appends each point's name to FILE as it is reached;
-``LTC_TEST_KILL_AT=N`` kills the process at the N-th point (1-based).
+half of it written, after each fsync of the journal and the map (and before the folder's, as in a
+whole commit), the growth reserved, half the in-place writes done (the middle one torn), just
+before and just after the truncation to the new length, just before and just after the journal's
+unlink (the commit point). ``LTC_TEST_EVENTS=FILE`` appends each point's name to FILE as it is
+reached; ``LTC_TEST_KILL_AT=N`` kills the process at the N-th point (1-based).
 """
 
 import os
@@ -37,14 +38,25 @@ def _die():
     os.kill(os.getpid(), signal.SIGKILL)
 
 
+def _around(step: str, call, *args):
+    """Kill points just before and just after one call."""
+    if _point(f"before {step}"):
+        _die()
+    call(*args)
+    if _point(f"after {step}"):
+        _die()
+
+
 class _OsAtPoints:
     """``os`` as the fileio module sees it, with kill points in the calls a commit makes."""
+
+    CREATED, HALF = "temp file created", "half written"
 
     def __getattr__(self, name):
         return getattr(os, name)
 
     def open(self, path, flags, *args):
-        if flags & os.O_CREAT and _point("temp file created"):
+        if flags & os.O_CREAT and _point(self.CREATED):
             _die()
         return os.open(path, flags, *args)
 
@@ -54,7 +66,7 @@ class _OsAtPoints:
         return os.posix_fallocate(fd, offset, size)
 
     def write(self, fd, data):
-        if _point("half written"):
+        if _point(self.HALF):
             os.write(fd, bytes(data[: len(data) // 2]))
             _die()
         return os.write(fd, data)
@@ -65,33 +77,18 @@ class _OsAtPoints:
         return os.fsync(fd)
 
     def replace(self, src, dst):
-        if _point("before replace"):
-            _die()
-        os.replace(src, dst)
-        if _point("after replace"):
-            _die()
+        _around("replace", os.replace, src, dst)
 
 
-class _JournalOsAtPoints:
-    """``os`` as the journal module sees it: the in-place commit's steps."""
+class _JournalOsAtPoints(_OsAtPoints):
+    """``os`` as the journal module sees it: the in-place commit's steps (it writes only the
+    journal with ``os.write``)."""
 
-    def __getattr__(self, name):
-        return getattr(os, name)
-
-    def open(self, path, flags, *args):
-        if flags & os.O_CREAT and _point("journal created"):
-            _die()
-        return os.open(path, flags, *args)
-
-    def write(self, fd, data):  # only the journal is written with os.write
-        if _point("journal half written"):
-            os.write(fd, bytes(data[: len(data) // 2]))
-            _die()
-        return os.write(fd, data)
+    CREATED, HALF = "journal created", "journal half written"
 
     def fsync(self, fd):
         os.fsync(fd)
-        if _point("after fsync (journal, folder or map)"):
+        if _point("after fsync (journal or map)"):
             _die()
 
     def posix_fallocate(self, fd, offset, size):
@@ -100,18 +97,10 @@ class _JournalOsAtPoints:
             _die()
 
     def ftruncate(self, fd, size):
-        if _point("before truncate"):
-            _die()
-        os.ftruncate(fd, size)
-        if _point("after truncate"):
-            _die()
+        _around("truncate", os.ftruncate, fd, size)
 
     def unlink(self, path):
-        if _point("before journal unlink"):
-            _die()
-        os.unlink(path)
-        if _point("after journal unlink"):
-            _die()
+        _around("journal unlink", os.unlink, path)
 
 
 def _write_runs_at_point(fd, runs):

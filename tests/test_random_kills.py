@@ -94,20 +94,17 @@ def test_sigkill_at_every_step_of_a_commit_in_place(tmp_path):
     is gone; the journal is gone after the first ltc reader; a resume ends in the uninterrupted
     run's map."""
     house = tiny_house(tmp_path / "house")
-    base = tmp_path / "lap1.h5"
+    base, ref, events = tmp_path / "lap1.h5", tmp_path / "ref.h5", tmp_path / "events.txt"
     assert run("ingest", house / "lap1", "--map", base).exit_code == 0
-    lap1_frames = len(load_map(base).frame_keys)
-    ref = tmp_path / "ref.h5"
     shutil.copyfile(base, ref)
-    events = tmp_path / "events.txt"
     assert ingest_process(house / "lap2", ref, LTC_TEST_EVENTS=str(events)).returncode == 0
-    points = events.read_text().splitlines()
+    lap1_frames, points = len(load_map(base).frame_keys), events.read_text().splitlines()
     ref_cols, ref_events, ref_frames, _ = state(ref)
     third = [i for i, p in enumerate(points) if p == "journal created"][2]
     end = points.index("detect", third)
     chosen = list(range(third + 1, end + 1)) + [points.index("growth reserved") + 1]
     assert {points[i - 1] for i in chosen} == {
-        "journal created", "journal half written", "after fsync (journal, folder or map)", "growth reserved",
+        "journal created", "journal half written", "after fsync (journal or map)", "fsync", "growth reserved",
         "in place, half written", "before truncate", "after truncate", "before journal unlink",
         "after journal unlink"}
     m = tmp_path / "map.h5"

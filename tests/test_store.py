@@ -1,6 +1,7 @@
-import fcntl
 import multiprocessing as mp
 import os
+import subprocess
+import sys
 import threading
 import time
 
@@ -215,12 +216,9 @@ def test_a_hot_journal_in_a_read_only_folder_is_read_around(tmp_path):
         assert path.read_bytes() == torn and os.path.exists(f"{path}-journal")
 
 
-def _hold_shared(path, ready, release):
-    fd = os.open(path, os.O_RDONLY)
-    fcntl.flock(fd, fcntl.LOCK_SH)  # as load_map holds it while it reads
-    ready.set()
-    release.wait(30)
-    os.close(fd)
+# A reader holding the map as load_map does while it reads, until its stdin closes.
+HOLD_SHARED = ("import fcntl, os, sys; fd = os.open(sys.argv[1], os.O_RDONLY); fcntl.flock(fd, fcntl.LOCK_SH); "
+               "print('ready', flush=True); sys.stdin.read()")
 
 
 def _waiting_for_a_lock(inode: int) -> bool:
@@ -236,12 +234,10 @@ def test_a_commit_in_place_waits_for_readers(tmp_path):
     save_map(smap, path)
     smap.frame_keys.add("abc/000005")
     before = path.read_bytes()
-    ctx = mp.get_context("fork")
-    ready, release = ctx.Event(), ctx.Event()
-    reader = ctx.Process(target=_hold_shared, args=(path, ready, release))
-    reader.start()
+    reader = subprocess.Popen([sys.executable, "-c", HOLD_SHARED, str(path)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
     try:
-        assert ready.wait(30)
+        assert reader.stdout.readline() == "ready\n"
         writer = threading.Thread(target=save_map, args=(smap, path))
         writer.start()
         for _ in range(3000):  # until the writer's lock request is queued behind the reader's
@@ -252,7 +248,6 @@ def test_a_commit_in_place_waits_for_readers(tmp_path):
             pytest.fail("the commit never waited for the reader")
         assert path.read_bytes() == before and not os.path.exists(f"{path}-journal")
     finally:
-        release.set()
-        reader.join(30)
+        reader.communicate("")
     writer.join(30)
     assert load_map(path).frame_keys == {"abc/000004", "abc/000005"}

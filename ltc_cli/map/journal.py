@@ -32,7 +32,7 @@ import os
 import struct
 from pathlib import Path
 
-from ltc_cli.fileio import NoSpaceError, free_bytes
+from ltc_cli.fileio import NoSpaceError, free_bytes, fsync_folder
 
 PAGE = 4096
 MAGIC = b"LTCJRNL1"
@@ -159,19 +159,6 @@ def read_journal(path) -> tuple[int, list[tuple[int, bytes]]] | None:
         ranges.append((off, body[at + _RANGE.size:at + _RANGE.size + k]))
         at += _RANGE.size + k
     return old_length, ranges
-
-
-def fsync_folder(folder) -> None:
-    try:
-        dfd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(dfd)
-    except OSError:
-        pass  # some filesystems cannot fsync a folder
-    finally:
-        os.close(dfd)
 
 
 def write_runs(fd: int, runs) -> None:
