@@ -251,3 +251,10 @@ def test_a_commit_in_place_waits_for_readers(tmp_path):
         reader.communicate("")
     writer.join(30)
     assert load_map(path).frame_keys == {"abc/000004", "abc/000005"}
+
+
+def test_a_journal_without_its_map_is_removed_before_a_new_map_is_made(tmp_path):
+    path = tmp_path / "m.h5"
+    (tmp_path / "m.h5-journal").write_bytes(b"left beside a map since deleted")
+    save_map(small_map(), path)
+    assert load_map(path).frame_keys == {"abc/000004"} and not (tmp_path / "m.h5-journal").exists()

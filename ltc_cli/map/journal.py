@@ -254,7 +254,11 @@ def recover(path) -> bool:
     jpath = journal_path(path)
     if not jpath.exists():
         return False
-    fd = os.open(path, os.O_RDWR | os.O_CLOEXEC)
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CLOEXEC)
+    except FileNotFoundError:  # the map is gone: nothing to restore, and a new map must not get it
+        _unlink(jpath)
+        return True
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # no live writer is mid-commit now
         if not jpath.exists():
