@@ -388,6 +388,8 @@ def save_map(smap: SemanticMap, path, in_place: bool = True) -> None:
     except OSError as exc:
         raise _commit_failed(path, exc, 0) from None
     rec = _committed.pop(str(path), None)
+    for gone in [k for k, r in _committed.items() if r.smap() is None]:  # maps no longer in memory
+        del _committed[gone]
     if in_place and rec is not None and rec.smap() is smap:
         try:
             done = commit_in_place(smap, path, rec)
