@@ -183,10 +183,13 @@ def _kill_a_commit(path, saved):
     assert os.path.exists(f"{path}-journal") and path.read_bytes() != saved.read_bytes()
 
 
-def test_a_hot_journal_is_rolled_back_by_the_next_reader(tmp_path):
+@pytest.mark.parametrize("through", ["the map", "a symlink"])
+def test_a_hot_journal_is_rolled_back_by_the_next_reader(tmp_path, through):
     path, saved = tmp_path / "m.h5", tmp_path / "saved.bin"
     _kill_a_commit(path, saved)
-    back = load_map(path)
+    link = tmp_path / "link.h5"
+    link.symlink_to("m.h5")
+    back = load_map(path if through == "the map" else link)
     assert back.frame_keys == {"abc/000004"} and back.events == small_map().events
     assert path.read_bytes() == saved.read_bytes()  # byte for byte the previous commit
     assert not os.path.exists(f"{path}-journal")

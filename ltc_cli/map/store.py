@@ -197,20 +197,21 @@ def _reading(path: Path):
     """Hold the map file's lock shared (an in-place commit waits for it) once any journal of a
     dead writer is rolled back; yield what to open: the path or, where the map cannot be written
     (a read-only folder), an in-memory view of the map as its journal restores it."""
-    if not path.is_file():
+    real = resolve_map_path(path)  # the journal is beside the file a symlink names
+    if not real.is_file():
         yield path
         return
     with contextlib.suppress(OSError):
-        journal.recover(path)
+        journal.recover(real)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+        fd = os.open(real, os.O_RDONLY | os.O_CLOEXEC)
     except OSError:
         yield path  # _open_checked names the problem
         return
     try:
         fcntl.flock(fd, fcntl.LOCK_SH)
         try:
-            view = journal.rolled_back_view(fd, os.fstat(fd).st_size, journal.journal_path(path))
+            view = journal.rolled_back_view(fd, os.fstat(fd).st_size, journal.journal_path(real))
         except OSError:
             view = None
         yield path if view is None else view
