@@ -122,7 +122,8 @@ def commit_child(path: Path, checkpoints: int) -> None:
     grown = (path.stat().st_size - size0) / 1e6
     w_cpu, w_wall = np.median(whole, axis=0)
     i_cpu, i_wall = np.median(inplace, axis=0)
-    print(f"checkpoint, {len(smap.events) - checkpoints * 1000:>9,} events  whole {w_cpu:6.3f} s CPU {w_wall:6.3f} s wall"
+    n = len(smap.events) - checkpoints * 1000
+    print(f"checkpoint, {n:>9,} events  whole {w_cpu:6.3f} s CPU {w_wall:6.3f} s wall"
           f" | in place {i_cpu:6.3f} s CPU {i_wall:6.3f} s wall (median of {checkpoints}); file {size0 / 1e6:6.1f} MB,"
           f" +{grown:.2f} MB after {checkpoints} checkpoints of +1,000 events")
 
