@@ -5,13 +5,19 @@
 2. ``ltc query MAP --id 5``, ``ltc info MAP`` and ``ltc query MAP --removed`` on a map with 1.5M
    events (20,000 objects, built here with the library);
 
-each a child process measured on its own (os.wait4). ``--baseline CMD`` runs the same commands
+each a child process measured on its own (os.wait4); and
+
+3. checkpoints (commits) on maps of 15k, 150k and 1.5M events: a whole rewrite (``save_map(...,
+   in_place=False)``, every commit before issue 11) against 20 checkpoints in place (each adding
+   1,000 events, 30 frame keys, 5 objects, changing 50 objects and the session row, about what 30
+   frames of a real ingest add), CPU and wall seconds per commit and the file's size after them;
+   each size in a child process of its own. ``--baseline CMD`` runs the same commands
 with another ltc too (e.g. an older commit unpacked by ``git archive``:
 ``--baseline "env PYTHONPATH=/tmp/old python -c 'from ltc_cli.cli import main; main()'"``), so
 before and after meet the same machine load. The cost of a lap into a 100k-object map (the grid
 index built at a session's start) is in bench_pipeline.py.
 
-    python benchmarks/bench_scale.py [--keep DIR] [--events 1500000] [--baseline CMD]
+    python benchmarks/bench_scale.py [--keep DIR] [--events 1500000] [--baseline CMD] [--commits-only]
 """
 
 from __future__ import annotations
@@ -19,11 +25,14 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -55,8 +64,6 @@ def big_object_map(path: Path) -> None:
 def big_event_map(path: Path, n_events: int) -> None:
     """20,000 objects and n_events events (created, updated, non-detection, a few removed) over
     150 sessions' frames, as a long-lived map's log grows."""
-    import numpy as np
-
     from ltc_cli.map.model import REMOVED, Event
     from ltc_cli.map.store import save_map
     from tests.sample_maps import big_map
@@ -75,25 +82,86 @@ def big_event_map(path: Path, n_events: int) -> None:
     save_map(smap, path)
 
 
+def checkpoint_delta(smap, rng, step: int) -> None:
+    """About what 30 frames of an ingest add to a map: events, frame keys, a few objects."""
+    from ltc_cli.map.model import Event
+
+    n = smap.objects.n
+    rows = rng.integers(0, n, 50)
+    smap.objects.cols["center"][rows] += 0.01
+    smap.objects.cols["n_det"][rows] += 1
+    for _ in range(5):
+        smap.objects.append(center=rng.normal(size=3), yaw=0.1, size=[1, 1, 1], visible=[True] * 8, defined=True,
+                            scores=rng.dirichlet(np.ones(len(smap.classes) + 1)), n_det=1)
+    oid = rng.integers(1, smap.objects.n + 1, 1000)
+    smap.events += [Event(150, step * 30 + i // 34, f"lap150/{step * 30 + i // 34:06d}", "updated", int(o))
+                    for i, o in enumerate(oid.tolist())]
+    smap.frame_keys |= {f"lap150/{step * 30 + i:06d}" for i in range(30)}
+    smap.sessions[-1]["frames_done"] = step * 30
+
+
+def commit_child(path: Path, checkpoints: int) -> None:
+    """Print one line: whole-rewrite and in-place commit times (CPU, wall) and sizes."""
+    from ltc_cli.map.store import load_map, save_map
+
+    rng = np.random.default_rng(5)
+    smap = load_map(path)
+    smap.sessions.append(dict(smap.sessions[-1], status="interrupted", frames_done=0))
+
+    def timed(**kw):
+        c0, w0 = time.process_time(), time.perf_counter()
+        save_map(smap, path, **kw)
+        return time.process_time() - c0, time.perf_counter() - w0
+
+    whole = [timed(in_place=False) for _ in range(3)]  # before: every commit wrote the whole file
+    size0 = path.stat().st_size
+    inplace = []
+    for step in range(1, checkpoints + 1):
+        checkpoint_delta(smap, rng, step)
+        inplace.append(timed())
+    grown = (path.stat().st_size - size0) / 1e6
+    w_cpu, w_wall = np.median(whole, axis=0)
+    i_cpu, i_wall = np.median(inplace, axis=0)
+    n = len(smap.events) - checkpoints * 1000
+    print(f"checkpoint, {n:>9,} events  whole {w_cpu:6.3f} s CPU {w_wall:6.3f} s wall"
+          f" | in place {i_cpu:6.3f} s CPU {i_wall:6.3f} s wall (median of {checkpoints}); file {size0 / 1e6:6.1f} MB,"
+          f" +{grown:.2f} MB after {checkpoints} checkpoints of +1,000 events")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--keep", type=Path, help="folder to keep (and reuse) the built maps in")
     ap.add_argument("--events", type=int, default=1_500_000)
     ap.add_argument("--baseline", help="another ltc command line to measure with")
     ap.add_argument("--build-only", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--commit-child", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("--commits-only", action="store_true", help="only the checkpoint figures")
+    ap.add_argument("--checkpoints", type=int, default=20)
     args = ap.parse_args()
+    if args.commit_child:
+        commit_child(args.commit_child, args.checkpoints)
+        return
     tmp = args.keep or Path(tempfile.mkdtemp(prefix="ltc-scale-"))
     tmp.mkdir(parents=True, exist_ok=True)
     objects_map, events_map = tmp / "objects-100k.h5", tmp / f"events-{args.events}.h5"
+    commit_sizes = [15_000, 150_000, 1_500_000]
     if args.build_only:
-        if not objects_map.exists():
+        if not objects_map.exists() and not args.commits_only:
             big_object_map(objects_map)
-        if not events_map.exists():
-            big_event_map(events_map, args.events)
+        for n in ([] if args.commits_only else [args.events]) + commit_sizes:
+            if not (tmp / f"events-{n}.h5").exists():
+                big_event_map(tmp / f"events-{n}.h5", n)
         return
     # Built in a child: a child forked from a big parent would report the parent's peak memory.
-    subprocess.run([sys.executable, __file__, "--build-only", "--keep", str(tmp), "--events", str(args.events)],
-                   check=True)
+    subprocess.run([sys.executable, __file__, "--build-only", "--keep", str(tmp), "--events", str(args.events)]
+                   + ["--commits-only"] * args.commits_only, check=True)
+    print(f"maps in {tmp}")
+    for n in commit_sizes:  # on a copy: the commits change it
+        shutil.copyfile(tmp / f"events-{n}.h5", tmp / "commits.h5")
+        subprocess.run([sys.executable, __file__, "--commit-child", str(tmp / "commits.h5"),
+                        "--checkpoints", str(args.checkpoints)], check=True)
+    if args.commits_only:
+        return
     ltcs = {"this": LTC}
     if args.baseline:
         ltcs = {"baseline": shlex.split(args.baseline), **ltcs}
@@ -106,7 +174,7 @@ def main():
         (f"info, {args.events:,} events", [str(events_map)], "info"),
         (f"query --removed, {args.events:,} events", [str(events_map), "--removed"], "query"),
     ]
-    print(f"maps in {tmp}; CPU s (user + system), wall s, max RSS MiB of each command")
+    print("CPU s (user + system), wall s, max RSS MiB of each command")
     for label, rest, command in runs:
         for name, ltc in ltcs.items():
             cpu, wall, rss = measure([*ltc, command, *rest])

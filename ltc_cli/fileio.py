@@ -95,7 +95,7 @@ def _existing_mode(path: Path) -> int | None:
         return None
 
 
-def _fsync_folder(folder: Path) -> None:
+def fsync_folder(folder) -> None:
     # After os.replace the new file is in place; making the rename durable is best effort (some
     # filesystems cannot fsync a folder), and a failure here must not report the commit as lost.
     try:
@@ -142,7 +142,7 @@ def atomic_target(path):
     except BaseException:
         _remove_quietly(tmp)
         raise
-    _fsync_folder(path.parent)
+    fsync_folder(path.parent)
 
 
 def write_bytes_atomic(path, data: bytes) -> None:

@@ -76,3 +76,49 @@ def test_sigkill_at_random_points_of_a_second_session(tmp_path):
         assert ev == ref_events and keys == ref_frames, (at, points[at - 1])
         assert status == ["complete", "complete"]  # the interrupted session was resumed, not doubled
         assert temp_files(tmp_path) == []  # the resume removed what the kill left
+
+
+def _frames_committed(points, at):
+    """Lap-2 frames in the map after a kill at point ``at`` (1-based): the frames detected before
+    it, less the one whose commit the kill interrupted unless that commit got past its commit
+    point (the journal's unlink, or the whole file's replace)."""
+    done = points[:at]
+    last = len(done) - 1 - done[::-1].index("detect")
+    return done.count("detect") - (not {"after journal unlink", "after replace"} & set(done[last + 1:]))
+
+
+@pytest.mark.slow
+def test_sigkill_at_every_step_of_a_commit_in_place(tmp_path):
+    """A kill at each step of one in-place commit (and at the growth's reservation): the map opens
+    (ltc rolls the journal back) as exactly the previous commit, or the new one once the journal
+    is gone; the journal is gone after the first ltc reader; a resume ends in the uninterrupted
+    run's map."""
+    house = tiny_house(tmp_path / "house")
+    base, ref, events = tmp_path / "lap1.h5", tmp_path / "ref.h5", tmp_path / "events.txt"
+    assert run("ingest", house / "lap1", "--map", base).exit_code == 0
+    shutil.copyfile(base, ref)
+    assert ingest_process(house / "lap2", ref, LTC_TEST_EVENTS=str(events)).returncode == 0
+    lap1_frames, points = len(load_map(base).frame_keys), events.read_text().splitlines()
+    ref_cols, ref_events, ref_frames, _ = state(ref)
+    third = [i for i, p in enumerate(points) if p == "journal created"][2]
+    end = points.index("detect", third)
+    chosen = list(range(third + 1, end + 1)) + [points.index("growth reserved") + 1]
+    assert {points[i - 1] for i in chosen} == {
+        "journal created", "journal half written", "after fsync (journal or map)", "fsync", "growth reserved",
+        "in place, half written", "before truncate", "after truncate", "before journal unlink",
+        "after journal unlink"}
+    m = tmp_path / "map.h5"
+    journal = tmp_path / "map.h5-journal"
+    for at in chosen:
+        shutil.copyfile(base, m)
+        p = ingest_process(house / "lap2", m, LTC_TEST_KILL_AT=str(at))
+        assert p.returncode == -signal.SIGKILL, (at, points[at - 1], p.stderr)
+        frames = len(load_map(m).frame_keys)
+        assert frames == lap1_frames + _frames_committed(points, at), (at, points[at - 1])
+        assert not journal.exists()
+        r = run("ingest", house / "lap2", "--map", m)
+        assert r.exit_code == 0, (at, points[at - 1], r.output)
+        cols, ev, keys, status = state(m)
+        for k in ref_cols:
+            np.testing.assert_array_equal(cols[k], ref_cols[k], err_msg=f"{k} after a kill at {points[at - 1]}")
+        assert ev == ref_events and keys == ref_frames and status == ["complete", "complete"], points[at - 1]

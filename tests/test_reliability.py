@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import ltc_cli.fileio as fileio
+import ltc_cli.map.journal as journal
 from ltc_cli.errors import MapLockedError
 from ltc_cli.map.store import MapLock, load_map
 from ltc_cli.pipeline import clustering
@@ -116,6 +117,62 @@ def test_enospc_part_way_through_a_write_leaves_nothing_behind(house, lap1_map, 
     line = error_line(run("ingest", house / "lap2", "--map", m))
     assert NO_SPACE.match(line), line
     assert sha256(m) == before and temp_files(tmp_path) == []
+
+
+class _InPlaceDiskFullOs:
+    """``os`` for the journal module with a full disk at one step of an in-place commit."""
+
+    def __init__(self, how):
+        self.how = how
+
+    def __getattr__(self, name):
+        return getattr(os, name)
+
+    def write(self, fd, data):  # the journal
+        if self.how == "ENOSPC writing the journal" and len(data) > 100:
+            os.write(fd, bytes(data[:100]))
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return os.write(fd, data)
+
+    def posix_fallocate(self, fd, offset, size):
+        if self.how == "ENOSPC reserving the growth":
+            os.ftruncate(fd, offset + size // 2)  # a reservation that got part of the way
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        raise OSError(errno.EOPNOTSUPP, "not supported")
+
+    def pwrite(self, fd, data, offset):  # no reservation: the growth fails part-way
+        if self.how == "ENOSPC mid in-place write" and offset + len(data) > os.fstat(fd).st_size:
+            os.pwrite(fd, bytes(data[:10]), offset)
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return os.pwrite(fd, data, offset)
+
+
+@pytest.mark.parametrize("how", ["checked before writing", "ENOSPC writing the journal", "ENOSPC reserving the growth",
+                                 "ENOSPC mid in-place write"])
+def test_a_full_disk_at_a_commit_in_place_leaves_the_last_commit(house, lap1_map, tmp_path, monkeypatch, how):
+    """The disk fills after the session's first checkpoint (a whole commit), so every later one, in
+    place, fails: one line, the map exactly at the first checkpoint, no journal left; a resume ends
+    in the uninterrupted run's map."""
+    ref = copy_map(lap1_map, tmp_path, "ref.h5")
+    assert run("ingest", house / "lap2", "--map", ref).exit_code == 0
+    m = copy_map(lap1_map, tmp_path)
+    lap1_frames = len(load_map(m).frame_keys)
+    if how == "checked before writing":
+        monkeypatch.setattr(journal, "free_bytes", lambda folder: 0)
+    else:
+        monkeypatch.setattr(journal, "os", _InPlaceDiskFullOs(how))
+    line = error_line(run("ingest", house / "lap2", "--map", m, "--checkpoint-every", "1"))
+    match = NO_SPACE.match(line)
+    assert match and match.group(1) == str(m), line
+    assert len(load_map(m).frame_keys) == lap1_frames + 1  # the first checkpoint, whole
+    assert not (tmp_path / "map.h5-journal").exists() and temp_files(tmp_path) == []
+    monkeypatch.undo()
+    assert run("ingest", house / "lap2", "--map", m).exit_code == 0
+    a, b = load_map(m), load_map(ref)
+    for k, col in b.objects.columns().items():
+        np.testing.assert_array_equal(a.objects.columns()[k], col, err_msg=k)
+    assert a.events == b.events and a.frame_keys == b.frame_keys
+    assert [s["status"] for s in a.sessions] == ["complete", "complete"]
 
 
 # -- 2. temporary files left by killed writers ---------------------------------------------------

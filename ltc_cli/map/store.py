@@ -1,11 +1,18 @@
-"""The map store: the only code that touches HDF5.
+"""The map store: the only code that touches HDF5 (with store_write.py, which writes the file).
 
 One ``.h5`` file holds the whole map (DESIGN.md section 4); h5dump shows all of it, nothing is
-pickled. Every save builds the complete new file in memory, checks and reserves its space on disk,
-writes it beside the old one, fsyncs it and ``os.replace``-s it over the old one, so a reader (or a
-crash, or a full disk) only ever sees a whole map. HDF5 itself never writes to disk: a full disk
-in the middle of an HDF5 flush crashed the process (h5py segfaults there), a plain ``os.write``
-just fails.
+pickled. HDF5 itself never writes to disk: a full disk in the middle of an HDF5 flush crashed the
+process (h5py segfaults there), a plain ``os.write`` just fails. A commit is one of two kinds:
+
+* in place, when this process made the previous commit of the file and it is unchanged since:
+  HDF5 writes only what changed into an in-memory overlay of the file, and journal.py writes
+  those bytes in place behind a rollback journal (its docstring says how a crash is undone);
+* whole (the first commit of a process, a new map, or one whose file is half unused space): the
+  complete new file is built in memory, checked for space, written beside the old one, fsync-ed
+  and ``os.replace``-d over it.
+
+Either way a reader (or a crash, or a full disk) only ever sees a whole commit: readers hold the
+map file's lock shared, and roll back (or read around) the journal of a writer that died.
 
 Every path to a map (symlinks included) is one map: the lock and the commit use the resolved path,
 so two writers on ``link.h5 -> real.h5`` and ``real.h5`` exclude each other, and a symlinked map
@@ -14,35 +21,28 @@ stays a symlink to its updated target. docs/reliability.md lists every fault tri
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
-import itertools
-import json
 import os
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from ltc_cli import __version__
 from ltc_cli.errors import MapFormatError, MapLockedError, MapWriteError
 from ltc_cli.fileio import (NoSpaceError, free_bytes, remove_temp_files, stale_temp_files, temp_path,
                             write_bytes_atomic)
+from ltc_cli.map import journal
 from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT, REQUIRED, check_map_arrays
 from ltc_cli.map.model import ADDED_COLUMNS, COLUMNS, Event, ObjectTable, SemanticMap
+from ltc_cli.map.store_write import (FORMAT, SESSION_COLUMNS, VERSION, commit_in_place, committed, file_ident,
+                                    map_image)
 
-FORMAT = "ltc-map"
-VERSION = 1
-
+__all__ = ["FORMAT", "VERSION", "SESSION_COLUMNS", "MapLock", "load_map", "save_map", "map_image", "check_map_file",
+           "check_writable", "orphan_temp_files", "resolve_map_path"]
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-_images = itertools.count()
-# Session rows: column -> kind ("s" text, "i" integer, "f" float). Dicts and lists are JSON text.
-SESSION_COLUMNS = {
-    "started": "s", "finished": "s", "status": "s", "sources": "s", "recordings": "s",
-    "readers": "s", "detector": "s", "metric": "s", "policy": "s", "settings": "s", "v_other": "f",
-    "ltc_version": "s", "frames_done": "i", "frames_skipped": "i", "up_rotation": "s", "floor_z": "s",
-    "visit": "i",  # 1 for a recording's first ingest, n for its n-th (--revisit); 0 in older maps
-}
+_committed: dict = {}  # resolved path -> store_write.Committed: what this process last committed there
 
 
 def resolve_map_path(path) -> Path:
@@ -113,6 +113,8 @@ class MapLock:
             # Holding the lock, no other process writes this map: every temporary file of it is
             # the leftover of a killed writer (a reused pid included), and only takes space.
             self.removed = remove_temp_files(self.map_path)
+            with contextlib.suppress(OSError):  # a folder that cannot be written is named just below
+                journal.recover(self.map_path)
             check_writable(self.map_path)
         except BaseException:
             self.release()
@@ -190,19 +192,46 @@ def _looks_like_hdf5(path: Path) -> bool:
             offset = 512 if offset == 0 else offset * 2
 
 
-def _open_checked(path: Path) -> h5py.File:
+@contextlib.contextmanager
+def _reading(path: Path):
+    """Hold the map file's lock shared (an in-place commit waits for it) once any journal of a
+    dead writer is rolled back; yield what to open: the path or, where the map cannot be written
+    (a read-only folder), an in-memory view of the map as its journal restores it."""
+    real = resolve_map_path(path)  # the journal is beside the file a symlink names
+    if not real.is_file():
+        yield path
+        return
+    with contextlib.suppress(OSError):
+        journal.recover(real)
+    try:
+        fd = os.open(real, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        yield path  # _open_checked names the problem
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH)
+        try:
+            view = journal.rolled_back_view(fd, os.fstat(fd).st_size, journal.journal_path(real))
+        except OSError:
+            view = None
+        yield path if view is None else view
+    finally:
+        os.close(fd)
+
+
+def _open_checked(path: Path, source) -> h5py.File:
     if not path.exists():
         raise MapFormatError("map file does not exist", path)
     if not path.is_file():
         raise MapFormatError("not an ltc map (not a file)", path)
     try:
-        hdf5 = _looks_like_hdf5(path)
+        hdf5 = source is not path or _looks_like_hdf5(path)
     except OSError as exc:
         raise MapFormatError(f"cannot read the map file ({exc.strerror})", path) from None
     if not hdf5:
         raise MapFormatError("not an ltc map (not an HDF5 file)", path)
     try:
-        f = h5py.File(path, "r")
+        f = h5py.File(source, "r")
     except OSError:
         raise _truncated(path) from None
     try:
@@ -300,12 +329,13 @@ def load_map(path, events: bool = True) -> SemanticMap:
     damaged (docs/reliability.md). ``events=False`` leaves the event log on disk (1.5M events:
     4.6 s, 900 MiB) but checks all but its contents; ``n_events`` counts it; such a map cannot be saved."""
     path = Path(path)
-    f = _open_checked(path)
-    try:
-        data, sess = _read_arrays(f, path, events)
-        created = _attr_text(f, "created", path)
-    finally:
-        f.close()
+    with _reading(path) as source:
+        f = _open_checked(path, source)
+        try:
+            data, sess = _read_arrays(f, path, events)
+            created = _attr_text(f, "created", path)
+        finally:
+            f.close()
     problem = check_map_arrays(data, sess, SESSION_COLUMNS)
     if problem:
         raise _damaged(problem, path)
@@ -336,71 +366,43 @@ def load_map(path, events: bool = True) -> SemanticMap:
     )
 
 
-def _text_dataset(group, name: str, values: list[str]) -> None:
-    """Text as fixed-length UTF-8 (NUL-padded): no global heap, whose damage made HDF5 loop for
-    ever on reading; the rest of the file's metadata is checksummed (libver v108)."""
-    raw = [v.encode("utf-8") for v in values]
-    width = max([len(b) for b in raw] + [1])
-    dtype = h5py.string_dtype("utf-8", width)
-    group.create_dataset(name, data=np.array(raw, dtype=dtype), dtype=dtype)
+def _commit_failed(path: Path, exc: OSError, size: int) -> MapWriteError:
+    if isinstance(exc, NoSpaceError):
+        return _no_space(path, exc.need, exc.free)
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return _no_space(path, size, free_bytes(path.parent))
+    if exc.errno == errno.EFBIG:
+        return MapWriteError(f"the new map ({_mb(size)}) is over the file-size limit; the map is unchanged", path)
+    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return _folder_not_writable(path.parent, exc)
+    return MapWriteError(f"cannot commit ({exc.strerror}); the map is unchanged", path)
 
 
-def map_image(smap: SemanticMap) -> bytes:
-    """The whole map as the bytes of an HDF5 file, built in memory."""
-    smap.require_events()
-    name = f"ltc-map-{os.getpid()}-{next(_images)}.h5"
-    with h5py.File(name, "w", driver="core", backing_store=False, libver=("v108", "latest")) as f:
-        # Text attributes fixed-length too (np.bytes_), for the reason _text_dataset gives; the
-        # format mark stays a variable-length string, as every reader of version 1 expects it.
-        f.attrs["format"] = FORMAT
-        f.attrs["format_version"] = VERSION
-        f.attrs["ltc_version"] = np.bytes_(__version__)
-        f.attrs["created"] = np.bytes_(smap.created.encode("utf-8"))
-        f.attrs["description"] = np.bytes_(
-            "ltc object map: Z-oriented boxes (center, yaw about z, size), class vectors over "
-            "classes + other, in a z-up map frame; see the ltc DESIGN, section 4"
-        )
-        _text_dataset(f, "classes", smap.classes)
-        f.create_dataset("up_rotation", data=np.asarray(smap.up_rotation, dtype=np.float64))
-        og = f.create_group("objects")
-        og.create_dataset("id", data=smap.objects.ids)
-        for name, arr in smap.objects.columns().items():
-            og.create_dataset(name, data=arr)
-        eg = f.create_group("events")
-        ev = smap.events
-        for k in EVENT_INT:
-            eg.create_dataset(k, data=np.array([getattr(e, k) for e in ev], dtype=np.int64))
-        for k in EVENT_TEXT:
-            _text_dataset(eg, k, [getattr(e, k) for e in ev])
-        sg = f.create_group("sessions")
-        for key, kind in SESSION_COLUMNS.items():
-            # A row made before a column existed stores it empty, as load_map reads it.
-            vals = [s.get(key, "" if kind == "s" else 0) for s in smap.sessions]
-            if kind == "s":
-                vals = [v if isinstance(v, str) else json.dumps(v) for v in vals]
-                _text_dataset(sg, key, vals)
-            else:
-                sg.create_dataset(key, data=np.array(vals, dtype=np.int64 if kind == "i" else np.float64))
-        _text_dataset(f, "frames", sorted(smap.frame_keys))
-        f.flush()
-        return f.id.get_file_image()
-
-
-def save_map(smap: SemanticMap, path) -> None:
-    """Commit the whole map atomically (module docstring). Raises MapWriteError, with the old map
-    as it was, when the new one cannot be written (a full disk: before a byte is written)."""
+def save_map(smap: SemanticMap, path, in_place: bool = True) -> None:
+    """Commit the map atomically (module docstring): in place when this process made the file's
+    last commit (and ``in_place``), else the whole file. Raises MapWriteError, with the old map as
+    it was, when the new one cannot be written (a full disk: before the map is touched)."""
     path = resolve_map_path(path)
+    smap.require_events()
+    try:
+        journal.recover(path)  # a dead writer's journal (save_map may be called without the lock)
+    except OSError as exc:
+        raise _commit_failed(path, exc, 0) from None
+    rec = _committed.pop(str(path), None)
+    for gone in [k for k, r in _committed.items() if r.smap() is None]:  # maps no longer in memory
+        del _committed[gone]
+    if in_place and rec is not None and rec.smap() is smap:
+        try:
+            done = commit_in_place(smap, path, rec)
+        except OSError as exc:
+            _committed[str(path)] = rec  # rolled back (or left for recovery): rec.ident says which
+            raise _commit_failed(path, exc, 0) from None
+        if done:
+            _committed[str(path)] = committed(smap, rec.ident)
+            return
     image = map_image(smap)
     try:
         write_bytes_atomic(path, image)
-    except NoSpaceError as exc:
-        raise _no_space(path, exc.need, exc.free) from None
     except OSError as exc:
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            raise _no_space(path, len(image), free_bytes(path.parent)) from None
-        if exc.errno == errno.EFBIG:
-            raise MapWriteError(f"the new map ({_mb(len(image))}) is over the file-size limit; the map is unchanged",
-                                path) from None
-        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
-            raise _folder_not_writable(path.parent, exc) from None
-        raise MapWriteError(f"cannot commit ({exc.strerror}); the map is unchanged", path) from None
+        raise _commit_failed(path, exc, len(image)) from None
+    _committed[str(path)] = committed(smap, file_ident(os.stat(path)))
