@@ -64,7 +64,7 @@ def fill_far_objects(mapper, n, seed=1):
         if abs(c[0]) < 15 and abs(c[1]) < 15:
             continue  # keep the camera's neighbourhood for the real objects
         size = rng.uniform(0.3, 1.5, 3)
-        row = t.append(center=c, yaw=rng.uniform(-1.5, 1.5), size=size, visible=np.ones(8, bool), defined=True,
+        t.append(center=c, yaw=rng.uniform(-1.5, 1.5), size=size, visible=np.ones(8, bool), defined=True,
                        scores=class_vector(done), n_det=5, status=ACTIVE)
         done += 1
 

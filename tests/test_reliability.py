@@ -113,7 +113,8 @@ class _DiskFullOs:
 def test_enospc_part_way_through_a_write_leaves_nothing_behind(house, lap1_map, tmp_path, monkeypatch):
     m = copy_map(lap1_map, tmp_path)
     before = sha256(m)
-    monkeypatch.setattr(fileio, "os", _DiskFullOs())
+    monkeypatch.setattr(fileio, "os", _DiskFullOs())  # a whole commit
+    monkeypatch.setattr(journal, "os", _DiskFullOs())  # a commit in place (its journal)
     line = error_line(run("ingest", house / "lap2", "--map", m))
     assert NO_SPACE.match(line), line
     assert sha256(m) == before and temp_files(tmp_path) == []
@@ -150,9 +151,9 @@ class _InPlaceDiskFullOs:
 @pytest.mark.parametrize("how", ["checked before writing", "ENOSPC writing the journal", "ENOSPC reserving the growth",
                                  "ENOSPC mid in-place write"])
 def test_a_full_disk_at_a_commit_in_place_leaves_the_last_commit(house, lap1_map, tmp_path, monkeypatch, how):
-    """The disk fills after the session's first checkpoint (a whole commit), so every later one, in
-    place, fails: one line, the map exactly at the first checkpoint, no journal left; a resume ends
-    in the uninterrupted run's map."""
+    """The disk fills before the session's first checkpoint, which goes in place like every later
+    one (the map read at the start is its base): one line, the map exactly as lap 1 left it, no
+    journal left; a resume ends in the uninterrupted run's map."""
     ref = copy_map(lap1_map, tmp_path, "ref.h5")
     assert run("ingest", house / "lap2", "--map", ref).exit_code == 0
     m = copy_map(lap1_map, tmp_path)
@@ -164,7 +165,7 @@ def test_a_full_disk_at_a_commit_in_place_leaves_the_last_commit(house, lap1_map
     line = error_line(run("ingest", house / "lap2", "--map", m, "--checkpoint-every", "1"))
     match = NO_SPACE.match(line)
     assert match and match.group(1) == str(m), line
-    assert len(load_map(m).frame_keys) == lap1_frames + 1  # the first checkpoint, whole
+    assert len(load_map(m).frame_keys) == lap1_frames  # the first checkpoint failed, in place
     assert not (tmp_path / "map.h5-journal").exists() and temp_files(tmp_path) == []
     monkeypatch.undo()
     assert run("ingest", house / "lap2", "--map", m).exit_code == 0

@@ -183,6 +183,55 @@ def _kill_a_commit(path, saved):
     assert os.path.exists(f"{path}-journal") and path.read_bytes() != saved.read_bytes()
 
 
+def test_a_loaded_map_commits_in_place_unless_the_file_changed_since(tmp_path):
+    """A map read from disk (a new session on an old map) commits its first checkpoint in place,
+    as the same changes written whole load; if another process replaced the file after the read,
+    the commit is whole (a delta against a file it did not read would be wrong)."""
+    rng = np.random.default_rng(5)
+    path, whole = tmp_path / "m.h5", tmp_path / "whole.h5"
+    save_map(small_map(), path)
+    for step in (1, 2):
+        _grow(small_map(), rng, step)  # nothing committed by this map: the file is unchanged
+        smap = load_map(path)
+        inode = os.stat(path).st_ino
+        _grow(smap, rng, step)
+        save_map(smap, path)
+        assert os.stat(path).st_ino == inode
+        save_map(smap, whole, in_place=False)
+        _same_maps(load_map(path), load_map(whole))
+    smap = load_map(path)
+    other = load_map(path)
+    _grow(other, rng, 3)
+    save_map(other, path)  # in place: the file smap read is no longer the file there
+    _grow(smap, rng, 4)
+    inode = os.stat(path).st_ino
+    save_map(smap, path)
+    assert os.stat(path).st_ino != inode  # written whole
+    save_map(smap, whole, in_place=False)
+    _same_maps(load_map(path), load_map(whole))
+
+
+def test_a_map_without_free_space_records_is_written_whole_first(tmp_path, monkeypatch):
+    """A file that does not keep its free-space records (maps of ltc before commits in place)
+    would lose every rewritten dataset's old space if patched: its first commit is whole (a new
+    inode, the same content as a whole write), and the commits after it are in place."""
+    path, whole = tmp_path / "m.h5", tmp_path / "whole.h5"
+    monkeypatch.setattr(store_write, "FILE_OPTIONS", {"libver": ("v108", "latest")})
+    save_map(small_map(), path)
+    monkeypatch.undo()
+    with h5py.File(path) as f:
+        assert f.id.get_create_plist().get_file_space_strategy()[1] == 0
+    rng = np.random.default_rng(7)
+    smap = load_map(path)
+    for step, replaced in ((1, True), (2, False)):
+        inode = os.stat(path).st_ino
+        _grow(smap, rng, step)
+        save_map(smap, path)
+        assert (os.stat(path).st_ino != inode) == replaced
+        save_map(smap, whole, in_place=False)
+        _same_maps(load_map(path), load_map(whole))
+
+
 @pytest.mark.parametrize("through", ["the map", "a symlink"])
 def test_a_hot_journal_is_rolled_back_by_the_next_reader(tmp_path, through):
     path, saved = tmp_path / "m.h5", tmp_path / "saved.bin"

@@ -4,10 +4,11 @@ One ``.h5`` file holds the whole map (DESIGN.md section 4); h5dump shows all of 
 pickled. HDF5 itself never writes to disk: a full disk in the middle of an HDF5 flush crashed the
 process (h5py segfaults there), a plain ``os.write`` just fails. A commit is one of two kinds:
 
-* in place, when this process made the previous commit of the file and it is unchanged since:
-  HDF5 writes only what changed into an in-memory overlay of the file, and journal.py writes
-  those bytes in place behind a rollback journal (its docstring says how a crash is undone);
-* whole (the first commit of a process, a new map, or one whose file is half unused space): the
+* in place, when the file is the one this map was read from or last committed to, unchanged
+  since: HDF5 writes only what changed into an in-memory overlay of the file, and journal.py
+  writes those bytes in place behind a rollback journal (its docstring says how a crash is undone);
+* whole (a new map, a file changed by another process since, a change that does not fit the
+  file's layout, or a file half unused space): the
   complete new file is built in memory, checked for space, written beside the old one, fsync-ed
   and ``os.replace``-d over it.
 
@@ -30,138 +31,24 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ltc_cli.errors import MapFormatError, MapLockedError, MapWriteError
-from ltc_cli.fileio import (NoSpaceError, free_bytes, remove_temp_files, stale_temp_files, temp_path,
-                            write_bytes_atomic)
+from ltc_cli.errors import MapFormatError, MapWriteError
+from ltc_cli.fileio import NoSpaceError, free_bytes, write_bytes_atomic
 from ltc_cli.map import journal
+from ltc_cli.map.lock import (MapLock, check_writable, folder_not_writable, mb, no_space, orphan_temp_files,
+                              resolve_map_path)
 from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT, REQUIRED, check_map_arrays
 from ltc_cli.map.model import ADDED_COLUMNS, COLUMNS, Event, ObjectTable, SemanticMap
 from ltc_cli.map.store_write import (FORMAT, SESSION_COLUMNS, VERSION, commit_in_place, committed, file_ident,
-                                    map_image)
+                                    map_image, path_ident)
 
 __all__ = ["FORMAT", "VERSION", "SESSION_COLUMNS", "MapLock", "load_map", "save_map", "map_image", "check_map_file",
            "check_writable", "orphan_temp_files", "resolve_map_path"]
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-_committed: dict = {}  # resolved path -> store_write.Committed: what this process last committed there
-
-
-def resolve_map_path(path) -> Path:
-    """The file a map path names, symlinks followed: what is locked and replaced."""
-    return Path(os.path.realpath(path))
-
-
-def _mb(n: int) -> str:
-    return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e6:.3g} MB"
-
-
-def _no_space(path, need: int, free: int) -> MapWriteError:
-    return MapWriteError(f"not enough free space to commit (need {_mb(need)}, {_mb(free)} free); the map is unchanged",
-                         path)
-
-
-def _folder_not_writable(folder, exc: OSError) -> MapWriteError:
-    return MapWriteError(f"the map's folder is not writable ({exc.strerror}); ltc writes each commit as a new file "
-                         "beside the map", folder)
-
-
-class MapLock:
-    """An exclusive advisory lock (flock on ``MAP.h5.lock`` beside the resolved map) held while a
-    process writes a map.
-
-    The kernel drops the lock when the holder dies, even by SIGKILL, so a crash never leaves a map
-    locked for ever. Taking the lock also checks, before any frame is mapped, that the map can be
-    written at all (file not read-only, folder writable, space for at least one commit), and removes
-    the temporary files that killed writers left beside the map (``removed``).
-    """
-
-    def __init__(self, path):
-        self.given = Path(path)
-        self.map_path = resolve_map_path(path)
-        self.path = Path(str(self.map_path) + ".lock")
-        self.fd = None
-        self.removed: list[Path] = []
-
-    def acquire(self) -> "MapLock":
-        folder = self.map_path.parent
-        if not folder.is_dir():
-            raise MapWriteError("the map's folder does not exist", folder)
-        lock_existed = self.path.exists()
-        try:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        except OSError as exc:
-            if exc.errno == errno.EROFS or (not lock_existed and exc.errno in (errno.EACCES, errno.EPERM)):
-                raise _folder_not_writable(folder, exc) from None
-            raise MapLockedError(f"cannot open the lock file ({exc.strerror})", self.path) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            holder = ""
-            try:
-                holder = os.pread(fd, 64, 0).decode().strip()
-            except OSError:
-                pass
-            os.close(fd)
-            if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                who = f" (pid {holder})" if holder else ""
-                raise MapLockedError(f"another ltc process{who} is writing this map; try again when it ends",
-                                     self.given) from None
-            raise
-        self.fd = fd
-        try:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, str(os.getpid()).encode(), 0)
-            # Holding the lock, no other process writes this map: every temporary file of it is
-            # the leftover of a killed writer (a reused pid included), and only takes space.
-            self.removed = remove_temp_files(self.map_path)
-            with contextlib.suppress(OSError):  # a folder that cannot be written is named just below
-                journal.recover(self.map_path)
-            check_writable(self.map_path)
-        except BaseException:
-            self.release()
-            raise
-        return self
-
-    def release(self) -> None:
-        if self.fd is not None:
-            fcntl.flock(self.fd, fcntl.LOCK_UN)
-            os.close(self.fd)
-            self.fd = None
-
-    def __enter__(self):
-        return self.acquire()
-
-    def __exit__(self, *exc):
-        self.release()
-
-
-def orphan_temp_files(path) -> list[tuple[Path, int]]:
-    """Temporary files beside map ``path`` whose writer is gone: (file, size in bytes)."""
-    return stale_temp_files(resolve_map_path(path))
-
-
-def check_writable(path) -> None:
-    """Raise MapWriteError unless map ``path`` can be committed: the file (when there is one) is
-    not read-only, the folder takes a new file, and there is room for a map at least as large."""
-    path = resolve_map_path(path)
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        st = None
-    # os.replace would swap a read-only file out without asking (and root may write anything):
-    # the owner's write bits say what the owner wants.
-    if st is not None and (not st.st_mode & 0o222 or not os.access(path, os.W_OK)):
-        raise MapWriteError(f"the map file is read-only (mode {st.st_mode & 0o777:04o}); make it writable "
-                            "(chmod u+w) to ingest into it", path)
-    probe = temp_path(path)
-    try:
-        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
-        os.unlink(probe)
-    except OSError as exc:
-        raise _folder_not_writable(path.parent, exc) from None
-    need = st.st_size if st is not None else 0
-    free = free_bytes(path.parent)
-    if need > free:
-        raise _no_space(path, need, free)
+_read_ident: dict = {}  # resolved path -> file_ident of the file load_map just read there
+# (resolved path, id of the SemanticMap) -> store_write.Committed: the file as that map last
+# committed or read it. Several maps may hold one; the first to commit changes the file's
+# identity, and the others' records no longer match it (they rewrite).
+_committed: dict = {}
 
 
 def check_map_file(path) -> None:
@@ -215,6 +102,8 @@ def _reading(path: Path):
         except OSError:
             view = None
         yield path if view is None else view
+        if view is None:
+            _read_ident[str(real)] = file_ident(os.fstat(fd))
     finally:
         os.close(fd)
 
@@ -334,6 +223,9 @@ def load_map(path, events: bool = True) -> SemanticMap:
         try:
             data, sess = _read_arrays(f, path, events)
             created = _attr_text(f, "created", path)
+            # Only a file that keeps its free-space records can be patched: in one without (maps
+            # of ltc before commits in place) every rewritten dataset's old space would be lost.
+            patchable = bool(f.id.get_create_plist().get_file_space_strategy()[1])
         finally:
             f.close()
     problem = check_map_arrays(data, sess, SESSION_COLUMNS)
@@ -359,22 +251,30 @@ def load_map(path, events: bool = True) -> SemanticMap:
             row[key] = (v.decode() if isinstance(v, bytes) else str(v)) if kind == "s" else (
                 int(v) if kind == "i" else float(v))
         sessions.append(row)
-    return SemanticMap(
+    smap = SemanticMap(
         classes=classes, objects=table, up_rotation=data["up_rotation"].astype(np.float64),
         events=log, sessions=sessions, frame_keys=set(_text(data["frames"])),
         created=created, unread_events=None if events else unread,
     )
+    real = str(resolve_map_path(path))
+    ident = _read_ident.pop(real, None)
+    # The file read is the base of this map's first commit in place when it is still the file at
+    # the path (no os.replace since it was opened): a new session's first checkpoint then costs
+    # what changed too. commit_in_place checks the file is unchanged since; a mismatch rewrites.
+    if events and patchable and ident is not None and ident == path_ident(real):
+        _committed[real, id(smap)] = committed(smap, ident)
+    return smap
 
 
 def _commit_failed(path: Path, exc: OSError, size: int) -> MapWriteError:
     if isinstance(exc, NoSpaceError):
-        return _no_space(path, exc.need, exc.free)
+        return no_space(path, exc.need, exc.free)
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        return _no_space(path, size, free_bytes(path.parent))
+        return no_space(path, size, free_bytes(path.parent))
     if exc.errno == errno.EFBIG:
-        return MapWriteError(f"the new map ({_mb(size)}) is over the file-size limit; the map is unchanged", path)
+        return MapWriteError(f"the new map ({mb(size)}) is over the file-size limit; the map is unchanged", path)
     if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
-        return _folder_not_writable(path.parent, exc)
+        return folder_not_writable(path.parent, exc)
     return MapWriteError(f"cannot commit ({exc.strerror}); the map is unchanged", path)
 
 
@@ -388,21 +288,22 @@ def save_map(smap: SemanticMap, path, in_place: bool = True) -> None:
         journal.recover(path)  # a dead writer's journal (save_map may be called without the lock)
     except OSError as exc:
         raise _commit_failed(path, exc, 0) from None
-    rec = _committed.pop(str(path), None)
+    key = (str(path), id(smap))
+    rec = _committed.pop(key, None)
     for gone in [k for k, r in _committed.items() if r.smap() is None]:  # maps no longer in memory
         del _committed[gone]
     if in_place and rec is not None and rec.smap() is smap:
         try:
             done = commit_in_place(smap, path, rec)
         except OSError as exc:
-            _committed[str(path)] = rec  # rolled back (or left for recovery): rec.ident says which
+            _committed[key] = rec  # rolled back (or left for recovery): rec.ident says which
             raise _commit_failed(path, exc, 0) from None
         if done:
-            _committed[str(path)] = committed(smap, rec.ident)
+            _committed[key] = committed(smap, rec.ident)
             return
     image = map_image(smap)
     try:
         write_bytes_atomic(path, image)
     except OSError as exc:
         raise _commit_failed(path, exc, len(image)) from None
-    _committed[str(path)] = committed(smap, file_ident(os.stat(path)))
+    _committed[key] = committed(smap, file_ident(os.stat(path)))

@@ -222,6 +222,14 @@ def file_ident(st: os.stat_result) -> tuple:
     return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
 
 
+def path_ident(path) -> tuple | None:
+    """file_ident of the file at ``path`` now, or None when there is none."""
+    try:
+        return file_ident(os.stat(path))
+    except OSError:
+        return None
+
+
 def commit_in_place(smap: SemanticMap, path, rec: Committed) -> bool:
     """Commit to map file ``path`` only what changed since ``rec``: HDF5 writes into a
     journal.Overlay of the file, journal.commit writes the result in place. False, with nothing
