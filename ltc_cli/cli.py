@@ -288,7 +288,7 @@ def query_cmd(map_path, classes, near, radius, min_confidence, ids, removed, fmt
         raise click.UsageError("--near and --radius go together")
     if radius is not None and not (math.isfinite(radius) and radius >= 0):
         raise click.BadParameter(f"must be >= 0, not {radius}", param_hint="--radius")
-    smap = load_map(map_path, events=removed)  # only --removed reads the event log
+    smap = load_map(map_path, events=("removed",) if removed else False)  # only --removed reads events
     spec = q.Query(classes=classes, near=point, radius=radius, min_confidence=min_confidence, ids=ids, removed=removed)
     result = q.select(smap, spec, map_path)
     recs = q.records(smap, result)

@@ -36,6 +36,19 @@ def test_everything_but_the_events(map_file):
         map_image(lean)
 
 
+def test_only_the_removals(map_file):
+    """events=("removed",): the log's removal events exactly as the whole log holds them, in
+    order; the count of all; such a map neither saves nor gives events of another kind."""
+    full, lean = load_map(map_file), load_map(map_file, events=("removed",))
+    assert lean.events == [e for e in full.events if e.kind == "removed"] and len(lean.events) >= 1
+    assert lean.n_events == 12 and lean.event_kinds == ("removed",)
+    assert removal_events(lean) == removal_events(full)
+    with pytest.raises(RuntimeError, match="without its event log"):
+        map_image(lean)
+    with pytest.raises(RuntimeError, match="without its event log"):
+        lean.require_events("created")
+
+
 def _replace(f, name, data):
     del f[name]
     f[name] = data
@@ -60,7 +73,7 @@ def test_damaged_event_log_is_refused_without_reading_it(map_file, damage):
     change, expected = DAMAGES[damage]
     with h5py.File(map_file, "a") as f:
         change(f)
-    for events in (True, False):
+    for events in (True, False, ("removed",)):
         with pytest.raises(MapFormatError, match="damaged ltc map") as err:
             load_map(map_file, events=events)
         assert expected in str(err.value)
@@ -74,6 +87,7 @@ def test_variable_length_text_events(map_file):
         f.create_dataset("events/kind", data=kinds, dtype=h5py.string_dtype())
     assert load_map(map_file, events=False).n_events == 12
     assert [e.kind for e in load_map(map_file).events] == kinds
+    assert [e.kind for e in load_map(map_file, events=("removed",)).events] == [k for k in kinds if k == "removed"]
 
 
 def test_commands_with_and_without_the_log(map_file, tmp_path):

@@ -248,6 +248,8 @@ class SemanticMap:
     # None: ``events`` is the whole log; a count: the map was loaded without its log (which then
     # holds this many events, on disk only).
     unread_events: int | None = None
+    # With unread_events: the kinds whose events ``events`` does hold (all of them), or None.
+    event_kinds: tuple | None = None
 
     @classmethod
     def new(cls, classes: list[str]) -> "SemanticMap":
@@ -261,10 +263,11 @@ class SemanticMap:
     def n_events(self) -> int:
         return len(self.events) if self.unread_events is None else self.unread_events
 
-    def require_events(self) -> None:
-        """Raise RuntimeError when the event log was not loaded (a bug in the caller: reading
-        removals from an empty log, or saving a map that would lose its log)."""
-        if self.unread_events is not None:
+    def require_events(self, kind: str | None = None) -> None:
+        """Raise RuntimeError when the event log (or, given ``kind``, its events of that kind) was
+        not loaded (a bug in the caller: reading removals from an empty log, or saving a map that
+        would lose its log)."""
+        if self.unread_events is not None and (kind is None or kind not in (self.event_kinds or ())):
             raise RuntimeError("this map was loaded without its event log (load_map(events=False))")
 
     def active_rows(self) -> np.ndarray:

@@ -131,7 +131,7 @@ def select(smap: SemanticMap, query: Query, map_path=None) -> QueryResult:
 
 def removal_events(smap: SemanticMap) -> dict[int, object]:
     """object id -> its last ``removed`` Event (session, frame, frame_key, detail)."""
-    smap.require_events()
+    smap.require_events("removed")
     out = {}
     for ev in smap.events:
         if ev.kind == "removed":

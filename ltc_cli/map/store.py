@@ -178,8 +178,9 @@ def _member(f: h5py.File, name: str, kind, path: Path):
     return obj
 
 
-def _read_arrays(f: h5py.File, path: Path, events: bool = True) -> tuple[dict, dict]:
-    """Every dataset of the map, read whole (the event log's only with ``events``)."""
+def _read_arrays(f: h5py.File, path: Path, events: bool | tuple = True) -> tuple[dict, dict, int]:
+    """Every dataset of the map, read whole (the event log's only with ``events``; a tuple of
+    kinds keeps only their events, undecoded text dropped first), and the log's length."""
     try:
         data = {name: _read_or_shape(_member(f, name, h5py.Dataset, path), events or not name.startswith("events/"))
                 for name in REQUIRED}
@@ -191,9 +192,25 @@ def _read_arrays(f: h5py.File, path: Path, events: bool = True) -> tuple[dict, d
         sessions = {k: np.asarray(_member(sg, k, h5py.Dataset, path)[()]) for k in SESSION_COLUMNS if k in sg}
     except (OSError, KeyError, ValueError, TypeError, RuntimeError):  # HDF5 errors in damaged data
         raise _truncated(path) from None
+    n_events = _keep_event_kinds(data, events) if isinstance(events, tuple) else len(data["events/kind"])
     _decode_text(data, "", path)
     _decode_text(sessions, "sessions/", path)
-    return data, sessions
+    return data, sessions, n_events
+
+
+def _keep_event_kinds(data: dict, kinds: tuple) -> int:
+    """The event columns' rows of these kinds only, in place; columns of unequal lengths or not
+    1-D (damage) are left whole for check_map_arrays to name. The other rows' text is never decoded: most of the
+    cost of reading a long log."""
+    names = [f"events/{k}" for k in EVENT_INT + EVENT_TEXT]
+    n = len(data["events/kind"])
+    if any(data[name].ndim != 1 or len(data[name]) != n for name in names):
+        return n
+    raw = data["events/kind"]
+    keep = np.isin(raw, [k.encode() for k in kinds] if raw.dtype.kind in "SO" else list(kinds))
+    for name in names:
+        data[name] = data[name][keep]
+    return n
 
 
 def _read_or_shape(ds: h5py.Dataset, read: bool) -> np.ndarray:
@@ -213,15 +230,17 @@ def _decode_text(arrays: dict, prefix: str, path: Path) -> None:
                 raise _damaged(f"{prefix}{name} holds text that is not UTF-8", path) from None
 
 
-def load_map(path, events: bool = True) -> SemanticMap:
+def load_map(path, events: bool | tuple = True) -> SemanticMap:
     """Read a whole map. Raises MapFormatError for files that are not maps, are too new, or are
     damaged (docs/reliability.md). ``events=False`` leaves the event log on disk (1.5M events:
-    4.6 s, 900 MiB) but checks all but its contents; ``n_events`` counts it; such a map cannot be saved."""
+    4.6 s, 900 MiB) but checks all but its contents; ``n_events`` counts it; such a map cannot be
+    saved. ``events=("removed",)`` loads only the events of those kinds (``event_kinds``); such a
+    map cannot be saved either."""
     path = Path(path)
     with _reading(path) as source:
         f = _open_checked(path, source)
         try:
-            data, sess = _read_arrays(f, path, events)
+            data, sess, n_all = _read_arrays(f, path, events)
             created = _attr_text(f, "created", path)
             # Only a file that keeps its free-space records can be patched: in one without (maps
             # of ltc before commits in place) every rewritten dataset's old space would be lost.
@@ -254,14 +273,15 @@ def load_map(path, events: bool = True) -> SemanticMap:
     smap = SemanticMap(
         classes=classes, objects=table, up_rotation=data["up_rotation"].astype(np.float64),
         events=log, sessions=sessions, frame_keys=set(_text(data["frames"])),
-        created=created, unread_events=None if events else unread,
+        created=created, unread_events=None if events is True else n_all,
+        event_kinds=events if isinstance(events, tuple) else None,
     )
     real = str(resolve_map_path(path))
     ident = _read_ident.pop(real, None)
     # The file read is the base of this map's first commit in place when it is still the file at
     # the path (no os.replace since it was opened): a new session's first checkpoint then costs
     # what changed too. commit_in_place checks the file is unchanged since; a mismatch rewrites.
-    if events and patchable and ident is not None and ident == path_ident(real):
+    if events is True and patchable and ident is not None and ident == path_ident(real):
         _committed[real, id(smap)] = committed(smap, ident)
     return smap
 
