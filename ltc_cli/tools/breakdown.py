@@ -8,13 +8,13 @@ Causes, each object counted once, in this order:
 
 - false positive (a map object matched at no overlap): ``phantom`` (its footprint, grown by
   ``phantom_margin`` metres per side, overlaps a recurring false positive of the simulated detector,
-  e.g. a poster seen as a tv), ``ghost`` / ``duplicate`` (as the evaluation says), ``mislabel`` (it
+  e.g. a poster seen as a tv) and no ground-truth object of its class, ``ghost`` / ``duplicate`` (as the evaluation says), ``mislabel`` (it
   overlaps a ground-truth object of another class: right place, wrong class), ``other``; and at
   XY IoU > 0.25, ``misplaced``: a match at some overlap but not above 0.25.
 - missed object (seen, unmatched at any overlap): ``deleted`` (maintenance removed a map object on
   it: ``deleted_eq4`` by eq. 4 non-detections, ``deleted_absent`` by the end-of-session absence
   rule), ``merged`` (a map object of its class that matches another object covers it), ``mislabel``
-  (only a map object of another class stands on it), ``unconfirmed`` (it was mapped, then pruned as
+  (a map object of another class stands on it, XY IoU > 0.1), ``unconfirmed`` (it was mapped, then pruned as
   unconfirmed), ``never`` (no map object ever stood on it); at XY IoU > 0.25, ``loose``: matched at
   some overlap but not above 0.25.
 - lost id (an unchanged object matched after both laps, not to the same map id): ``removed`` (the
@@ -38,14 +38,18 @@ FN_CAUSES = ("deleted_eq4", "deleted_absent", "merged", "mislabel", "unconfirmed
 ID_CAUSES = ("removed", "merged", "rematched", "unmatched")
 
 
-def _overlaps(a, b, grow: float = 0.0) -> np.ndarray:
-    """(len(a), len(b)) bool: XY footprints overlap (b's grown by ``grow`` metres per side)."""
+MISLABEL_IOU = 0.1  # a map object of another class on an object is a mislabel from this XY IoU on
+
+
+def _overlaps(a, b, grow: float = 0.0, min_iou: float = 0.0) -> np.ndarray:
+    """(len(a), len(b)) bool: XY footprints overlap (b's grown by ``grow`` metres per side) by more
+    than ``min_iou``."""
     if not a or not b:
         return np.zeros((len(a), len(b)), dtype=bool)
     ca, ya, sa = object_arrays(a)
     cb, yb, sb = object_arrays(b)
     iou, _ = pairwise_ious_arrays(ca, ya, sa, cb, yb, sb + np.array([2 * grow, 2 * grow, 0.0]))
-    return iou > 0
+    return iou > min_iou
 
 
 def false_positive_causes(res: dict, map_objs, gt_objs, phantoms=(), phantom_margin: float = 0.15) -> dict:
@@ -58,13 +62,14 @@ def false_positive_causes(res: dict, map_objs, gt_objs, phantoms=(), phantom_mar
     out = {}
     for mid in res["fp_ids"]:
         m = maps[mid]
-        if _overlaps([m], phantoms, phantom_margin).any():
+        own = [g for g in gts if g.cls == m.cls]
+        if _overlaps([m], phantoms, phantom_margin).any() and not _overlaps([m], own).any():
             out[mid] = "phantom"
         elif mid in ghosts:
             out[mid] = "ghost"
         elif mid in dups:
             out[mid] = "duplicate"
-        elif _overlaps([m], [g for g in gts if g.cls != m.cls]).any():
+        elif _overlaps([m], [g for g in gts if g.cls != m.cls], min_iou=MISLABEL_IOU).any():
             out[mid] = "mislabel"
         else:
             out[mid] = "other"
@@ -97,7 +102,7 @@ def missed_causes(res: dict, map_objs, gt_objs, seen_ids, removed_eq4=(), remove
             out[gid] = "deleted_absent"
         elif any(m.cls == g.cls and m.id in matched_map for m in on):
             out[gid] = "merged"
-        elif any(m.cls != g.cls for m in on):
+        elif _overlaps([m for m in on if m.cls != g.cls], [g], min_iou=MISLABEL_IOU).any():
             out[gid] = "mislabel"
         elif _overlaps([as_eval_object(o) for o in removed_unconfirmed if _cls(o) == g.cls], [g]).any():
             out[gid] = "unconfirmed"
