@@ -42,6 +42,8 @@ class AssociationSettings(TypedDict):
     containment_other_class: Optional[float]
     other_class_volume_ratio: Optional[float]
     partial_adjoin_gap: Optional[float]
+    merge_other_class_iou: Optional[float]
+    merge_containment: Optional[float]
     merge: bool
 
 
@@ -49,6 +51,7 @@ class IntegrationSettings(TypedDict):
     erosion: float
     max_weight: Optional[float]
     unassigned_score: str
+    relabel_weight: str
 
 
 class MaintenanceSettings(TypedDict):
@@ -71,6 +74,7 @@ class MaintenanceSettings(TypedDict):
     min_detections: int
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
+    spare_detected_in_session: bool
     ray_step: int
     depth_tolerance: float
 

@@ -223,6 +223,18 @@ def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min
     return weak
 
 
+def found_again(first_session: np.ndarray, last_session: np.ndarray, session: int) -> np.ndarray:
+    """(M,) bool: objects of an earlier session that were detected earlier in this one.
+
+    Within one visit a detector's misses of an object it found again minutes ago say more about
+    the detector (an angle it does not know, blur, a run of correlated misses) than about the
+    object: things are rarely taken away while the robot is in the room. Such misses are not
+    counted; the object's absence is judged in later sessions. Objects created in this session are
+    not spared: they have yet to show that they are more than a detector's error.
+    """
+    return (np.asarray(first_session) < session) & (np.asarray(last_session) == session)
+
+
 def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None) -> np.ndarray:
     """(M,) bool: objects whose visible pixels the camera mostly saw through (at least ``share`` of
     them with observed depth beyond the box; None: never)."""

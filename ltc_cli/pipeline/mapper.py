@@ -17,12 +17,12 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, containing_candidate, containment, footprint_gaps, duplicate_pairs, greedy_merges, nearest_under_threshold, similar_volume,
+    adjoining_partial, containing_candidate, containment, footprint_gaps, duplicate_pairs, greedy_merges, nearest_under_threshold, relabel_pairs, similar_volume,
     thresholds_for,
 )
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects
 from ltc_cli.pipeline.maintenance import (
-    camera_view, class_hit_counts, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
+    camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
@@ -257,6 +257,9 @@ class Mapper:
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
+        if m_cfg["spare_detected_in_session"]:
+            t = self.map.objects
+            missed &= ~found_again(t.first_session[rows], t.last_session[rows], self.session)
         empty = missed & seen_empty(vis_px, empty_px, m_cfg["seen_empty_share"])
         if missed.any():
             # A miss where the depth shows free space is not the detector's word but the camera's:
@@ -338,7 +341,9 @@ class Mapper:
         else:
             new = integrate_box(det_box, obj, 1.0, self._weight(row), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         t.set_box(row, new)
-        t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], self._weight(row))  # eq. 3
+        w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
+                         int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
+        t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], w)  # eq. 3
         t.cols["n_det"][row] += 1
         self._seen(row, frame_index)
         self.index.insert(row, new.center, new.size)
@@ -378,8 +383,12 @@ class Mapper:
         a_cfg = self.cfg["association"]
         pairs = duplicate_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance,
                                 a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
-                                a_cfg["containment"], a_cfg["containment_other_class"],
+                                a_cfg["merge_containment"] or a_cfg["containment"], a_cfg["containment_other_class"],
                                 a_cfg["other_class_volume_ratio"])
+        # One object under two labels merges after every true duplicate (keys past any distance).
+        pairs += [(1e6 + k, a, b) for k, a, b in relabel_pairs(t.boxes(rows), top_class(t.scores[rows]),
+                                                               a_cfg["merge_other_class_iou"],
+                                                               a_cfg["other_class_volume_ratio"])]
         merges = greedy_merges(pairs, rows + 1)
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
@@ -391,8 +400,12 @@ class Mapper:
         self._touch(drop)
         i_cfg = self.cfg["integration"]
         b_keep, b_drop = t.box(keep), t.box(drop)
-        box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], self._weight(keep),
-                                    self._weight(drop), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+        # Two labels of one object: each class vector weighs as its observations (relabel_weight all).
+        same = int(top_class(t.scores[keep])) == int(top_class(t.scores[drop]))
+        w_keep, w_drop = (label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same, i_cfg["relabel_weight"])
+                          for r in (keep, drop))
+        box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], w_keep, w_drop,
+                                    i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         if self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep):
             box = max(b_keep, b_drop, key=lambda b: float(np.prod(b.size)))  # never the smaller one's
         t.set_box(keep, box)
