@@ -20,6 +20,7 @@ class ModelingSettings(TypedDict):
     min_depth: float
     max_depth: float
     edge_jump: Optional[float]
+    picture_flatness: Optional[float]
     clustering: str
     eps: float
     min_samples: int

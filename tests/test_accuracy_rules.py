@@ -1,6 +1,6 @@
 """The rules that took on the realistic simulator's error causes (docs/decisions.md): the label by
-the majority of the evidence, one object under two labels, fragments of one object, and no removal
-within a visit of an object found again in it. Expected values are worked out by hand here."""
+the majority of the evidence, one object under two labels, fragments of one object, no removal
+within a visit of an object found again in it, and pictures on walls. Expected values are worked out by hand here."""
 
 import numpy as np
 import pytest
@@ -10,9 +10,11 @@ from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
 from ltc_cli.pipeline.association import relabel_pairs
+from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame
 from ltc_cli.pipeline.integration import label_weight
 from ltc_cli.pipeline.maintenance import found_again
 from ltc_cli.pipeline.mapper import Mapper
+from ltc_cli.pipeline.pictures import flat_on_wall
 from tests.scene import INTR, T_world_camera, render
 from tests.test_identity import CHAIR_BOX, CHAIR_FACE, CLASSES, chair_vector
 
@@ -136,3 +138,39 @@ def test_an_object_not_found_again_is_missed_as_before():
     for k in range(20):
         mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
     assert mapper.map.objects.status[row] == REMOVED
+
+
+POSTER = (3.99, 4.0, -0.3, 0.3, 0.9, 1.4)  # 1 cm proud of the wall at x = 4 (render()'s format)
+TV = (3.7, 3.9, -0.3, 0.3, 0.9, 1.4)  # a screen standing 0.3 m in front of it
+
+
+def test_a_poster_flat_on_the_wall_is_a_picture_a_tv_in_front_of_it_is_not():
+    depth, masks = render([POSTER], wall_x=4.0)
+    assert flat_on_wall(masks[0], depth, INTR, T_world_camera(), 0.025)
+    assert not flat_on_wall(masks[0], depth, INTR, T_world_camera(), 0.005)  # 1 cm > 0.5 cm
+    depth, masks = render([TV], wall_x=4.0)
+    assert not flat_on_wall(masks[0], depth, INTR, T_world_camera(), 0.025)
+
+
+def test_a_sheet_on_the_floor_is_not_a_picture():
+    """The floor z = 0 seen from 1 m up: depth Z = 1 * fy / (v - cy) below the horizon. A mask
+    on it is flat on its surroundings, but they are horizontal: not a wall."""
+    depth = np.full((INTR.height, INTR.width), 4.0, dtype=np.float32)
+    v = np.arange(INTR.height)
+    below = v > INTR.cy + 5
+    depth[below] = (1.0 * INTR.fy / (v[below] - INTR.cy))[:, None]
+    mask = np.zeros(depth.shape, bool)
+    mask[400:440, 300:340] = True
+    assert not flat_on_wall(mask, depth, INTR, T_world_camera(), 0.025)
+
+
+def test_stage_1_drops_a_poster_with_picture_flatness():
+    cfg = defaults()
+    depth, masks = render([POSTER], wall_x=4.0)
+    tv = np.full(len(CLASSES) + 1, 0.1 / 9)
+    tv[1], tv[-1] = 0.9, 0.0
+    flags = ClassFlags.from_settings(CLASSES, cfg)
+    kept = model_frame(masks, [tv], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags)
+    assert (kept.detections, len(kept.modeled.source)) == (1, 0)
+    cfg["modeling"]["picture_flatness"] = None
+    assert len(model_frame(masks, [tv], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags).modeled.source) == 1
