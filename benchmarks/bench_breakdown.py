@@ -10,7 +10,6 @@ per lap, every false positive, missed seen object and lost id by its cause (--li
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -101,14 +100,7 @@ def run_house(h: Path, laps: int, args):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--houses", type=int, default=4)
-    ap.add_argument("--scene", default="small")
-    ap.add_argument("--first-seed", type=int, default=101)
-    ap.add_argument("--laps", type=int, default=2)
-    ap.add_argument("--profile", choices=["realistic", "benign"], default="realistic")
-    ap.add_argument("--config")
-    ap.add_argument("--set", dest="sets", action="append", default=[])
+    ap = acc.house_arguments()
     ap.add_argument("--list", action="store_true", help="print every error with its house, class and cause")
     args = ap.parse_args()
     houses = [acc.house(args.scene, args.first_seed + i, (), args.laps, args.profile) for i in range(args.houses)]

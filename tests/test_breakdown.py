@@ -32,6 +32,12 @@ def test_false_positives_by_cause():
     causes = false_positive_causes(res, MAP, GT, POSTER)
     assert causes == {12: "duplicate", 13: "phantom", 14: "mislabel", 15: "misplaced", 16: "other", 17: "ghost"}
     assert tally(causes, ("phantom", "other", "x"))["x"] == 0
+    # A second table box on the table, over a pile of clutter (a phantom) on it: a duplicate of the
+    # table, not a phantom (an object of its class stands there).
+    clutter = [obj(30001, "book", 3.0, 0.3)]
+    second = MAP + [obj(18, "dining table", 3.1, 1.0, 0.6)]
+    res = evaluate(second, GT, previous_gt=[EARLIER])
+    assert false_positive_causes(res, second, GT, clutter)[18] == "duplicate"
 
 
 def test_missed_objects_by_cause():

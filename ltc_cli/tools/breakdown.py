@@ -73,10 +73,7 @@ def false_positive_causes(res: dict, map_objs, gt_objs, phantoms=(), phantom_mar
             out[mid] = "mislabel"
         else:
             out[mid] = "other"
-    for match in res["matches"]:
-        if match["xy_iou"] <= 0.25:
-            out[match["map_id"]] = "misplaced"
-    return out
+    return _below_quarter(res, "map_id", "misplaced", out)
 
 
 def missed_causes(res: dict, map_objs, gt_objs, seen_ids, removed_eq4=(), removed_absent=(),
@@ -108,9 +105,12 @@ def missed_causes(res: dict, map_objs, gt_objs, seen_ids, removed_eq4=(), remove
             out[gid] = "unconfirmed"
         else:
             out[gid] = "never"
-    for match in res["matches"]:
-        if match["xy_iou"] <= 0.25:
-            out[match["gt_id"]] = "loose"
+    return _below_quarter(res, "gt_id", "loose", out)
+
+
+def _below_quarter(res: dict, key: str, cause: str, out: dict) -> dict:
+    """``out`` with ``cause`` for the ``key`` ids of the matches at XY IoU <= 0.25."""
+    out.update({m[key]: cause for m in res["matches"] if m["xy_iou"] <= 0.25})
     return out
 
 
