@@ -34,8 +34,8 @@ def test_false_positives_by_cause():
     assert tally(causes, ("phantom", "other", "x"))["x"] == 0
     # A second table box on the table, over a pile of clutter (a phantom) on it: a duplicate of the
     # table, not a phantom (an object of its class stands there).
-    clutter = [obj(30001, "book", 3.0, 0.3)]
-    second = MAP + [obj(18, "dining table", 3.1, 1.0, 0.6)]
+    clutter = [obj(30001, "book", 2.2, 0.3)]
+    second = MAP + [obj(18, "dining table", 2.2, 0.4)]  # XY IoU 0.06 / 1.3 with the table
     res = evaluate(second, GT, previous_gt=[EARLIER])
     assert false_positive_causes(res, second, GT, clutter)[18] == "duplicate"
 
