@@ -381,13 +381,16 @@ class Mapper:
         if rows.size < 2:
             return 0
         a_cfg = self.cfg["association"]
+        # The overlap rules (containment, fragments, two labels) all stand down with containment off
+        # (the paper: vertex distance only).
+        overlap = a_cfg["containment"] is not None
         pairs = duplicate_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance,
                                 a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
-                                a_cfg["merge_containment"] or a_cfg["containment"], a_cfg["containment_other_class"],
-                                a_cfg["other_class_volume_ratio"])
+                                overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
+                                a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"])
         # One object under two labels merges after every true duplicate (keys past any distance).
         pairs += [(1e6 + k, a, b) for k, a, b in relabel_pairs(t.boxes(rows), top_class(t.scores[rows]),
-                                                               a_cfg["merge_other_class_iou"],
+                                                               a_cfg["merge_other_class_iou"] if overlap else None,
                                                                a_cfg["other_class_volume_ratio"])]
         merges = greedy_merges(pairs, rows + 1)
         for keep, drop in merges:
