@@ -75,7 +75,7 @@ class MaintenanceSettings(TypedDict):
     min_detections: int
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
-    spare_detected_in_session: bool
+    spare_frames: Optional[int]
     ray_step: int
     depth_tolerance: float
 

@@ -105,28 +105,34 @@ def test_fragments_of_one_class_merge_at_the_merge_containment():
 
 
 def test_found_again_by_hand():
-    first, last = np.array([0, 0, 1, 1]), np.array([0, 1, 1, 0])
-    assert found_again(first, last, 1).tolist() == [False, True, False, False]
+    first, last = np.array([0, 0, 1, 1, 0]), np.array([0, 1, 1, 0, 1])
+    last_frame = np.array([5, 5, 5, 5, 2])  # the last object was detected 8 frames before frame 10
+    assert found_again(first, last, last_frame, 1, 10, 6).tolist() == [False, True, False, False, False]
+    assert found_again(first, last, last_frame, 1, 10, 8).tolist() == [False, True, False, False, True]
 
 
-@pytest.mark.parametrize("spare", [True, False])
-def test_an_object_found_again_in_a_session_is_not_removed_by_its_misses_in_it(spare):
-    """A chair of session 0 (5 detections) detected once in session 1, then missed in clear view in
-    19 frames, each miss counting (v_Other 0.5, D <= 5): the paper's eq. 4 removes it; with
-    spare_detected_in_session it gets no non-detection in this session."""
+@pytest.mark.parametrize("window", [12, None])
+def test_an_object_found_again_is_not_removed_by_the_misses_right_after(window):
+    """A chair of session 0 (5 detections) detected at frame 0 of session 1, then missed in clear
+    view, each miss counting (v_Other 0.5, D <= 5). With spare_frames 12, frames 1-12 give no
+    non-detection; from frame 13 on they count, and the 13 frames after it remove it as eq. 4 with
+    no window would (the paper removes it within the first 12)."""
     cfg = every_miss_counts(defaults())
-    cfg["maintenance"]["spare_detected_in_session"] = spare
+    cfg["maintenance"]["spare_frames"] = window
     mapper, row = mapper_with_chair(cfg, n_det=5)
     seen, masks = render([CHAIR_FACE], wall_x=4.0)
     empty, _ = render([], wall_x=4.0)
     mapper.process_frame(0, "0", [masks[0]], [chair_vector(0.8)], seen, T_world_camera(), INTR, (0.3, 6.0))
-    for k in range(1, 20):
-        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
     t = mapper.map.objects
-    if spare:
-        assert (t.status[row], t.n_nondet[row], t.n_clear[row]) == (ACTIVE, 0, 20)
-    else:
+    for k in range(1, 13):
+        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    if window is None:
         assert t.status[row] == REMOVED and t.n_nondet[row] > 0
+        return
+    assert (t.status[row], t.n_nondet[row], t.n_clear[row]) == (ACTIVE, 0, 13)
+    for k in range(13, 26):
+        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.status[row] == REMOVED and t.n_nondet[row] > 0
 
 
 def test_an_object_not_found_again_is_missed_as_before():

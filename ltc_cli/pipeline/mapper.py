@@ -197,7 +197,7 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)
+            missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index)
             vectors = self.non_detection_vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
@@ -245,7 +245,7 @@ class Mapper:
                                      a_cfg["partial_adjoin_gap"])
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
-    def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range):
+    def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
         """(missed (M,), clear (M,), empty (M,)) bool over in-view rows: which get a non-detection,
         as the maintenance policy decides; which were clearly visible (enough pixels to say so); and
         which of the missed ones the depth showed to be free space."""
@@ -257,9 +257,10 @@ class Mapper:
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
-        if m_cfg["spare_detected_in_session"]:
+        if m_cfg["spare_frames"] is not None:
             t = self.map.objects
-            missed &= ~found_again(t.first_session[rows], t.last_session[rows], self.session)
+            missed &= ~found_again(t.first_session[rows], t.last_session[rows], t.last_frame[rows], self.session,
+                                   frame_index, m_cfg["spare_frames"])
         empty = missed & seen_empty(vis_px, empty_px, m_cfg["seen_empty_share"])
         if missed.any():
             # A miss where the depth shows free space is not the detector's word but the camera's:
