@@ -246,3 +246,18 @@ def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_vo
                                                                          other_volume_ratio)
     a, b = np.nonzero(np.triu(ok, 1))
     return sorted((1.0 - float(iou[i, j]), int(i), int(j)) for i, j in zip(a, b))
+
+
+def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict) -> list[tuple[float, int, int]]:
+    """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
+    association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
+    inside the other by ``merge_containment``, default ``containment``), then one object under two
+    labels (:func:`relabel_pairs`, keys past any distance). The overlap rules all stand down with
+    ``containment`` off (the paper: vertex distance only)."""
+    overlap = a_cfg["containment"] is not None
+    pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
+                            overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
+                            a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"])
+    two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
+                               a_cfg["other_class_volume_ratio"])
+    return pairs + [(1e6 + k, a, b) for k, a, b in two_labels]

@@ -17,7 +17,7 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, containing_candidate, containment, footprint_gaps, duplicate_pairs, greedy_merges, nearest_under_threshold, relabel_pairs, similar_volume,
+    adjoining_partial, containing_candidate, containment, footprint_gaps, greedy_merges, merge_pairs, nearest_under_threshold, similar_volume,
     thresholds_for,
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects
@@ -381,18 +381,7 @@ class Mapper:
         rows = self._candidates(invert_pose(T_camera_map), T_camera_map, intr, max_depth)
         if rows.size < 2:
             return 0
-        a_cfg = self.cfg["association"]
-        # The overlap rules (containment, fragments, two labels) all stand down with containment off
-        # (the paper: vertex distance only).
-        overlap = a_cfg["containment"] is not None
-        pairs = duplicate_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance,
-                                a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
-                                overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
-                                a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"])
-        # One object under two labels merges after every true duplicate (keys past any distance).
-        pairs += [(1e6 + k, a, b) for k, a, b in relabel_pairs(t.boxes(rows), top_class(t.scores[rows]),
-                                                               a_cfg["merge_other_class_iou"] if overlap else None,
-                                                               a_cfg["other_class_volume_ratio"])]
+        pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, self.cfg["association"])
         merges = greedy_merges(pairs, rows + 1)
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
