@@ -180,3 +180,18 @@ def test_stage_1_drops_a_poster_with_picture_flatness():
     assert (kept.detections, len(kept.modeled.source)) == (1, 0)
     cfg["modeling"]["picture_flatness"] = None
     assert len(model_frame(masks, [tv], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags).modeled.source) == 1
+
+
+def test_an_absent_object_is_removed_once():
+    """A chair of session 0 clearly visible in 5 frames of session 1 and detected in none goes at
+    the end of session 1 with one `removed` event (absent), not a second one as unconfirmed."""
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["seen_empty_share"] = None
+    mapper, row = mapper_with_chair(cfg, n_det=50)
+    empty, _ = render([], wall_x=4.0)
+    for k in range(5):
+        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    assert mapper.prune_unconfirmed(2, -1, "end", None) == 1
+    removals = [e.detail for e in mapper.map.events if e.kind == "removed" and e.object_id == row + 1]
+    assert len(removals) == 1 and removals[0].startswith("other: clearly visible in 5 frames")

@@ -285,6 +285,7 @@ class Mapper:
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
         rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share)]
         absent = self.cfg["maintenance"]["absent_after_views"]
+        gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
             # Objects of earlier sessions seen clearly in at least ``absent`` frames of this one and
@@ -298,7 +299,7 @@ class Mapper:
                 self._log(frame_index, frame_key, "removed", row + 1,
                           detail=(f"other: clearly visible in {int(t.clear_in_session[row])} frames of this session, "
                                   "detected in none"))
-            rows = np.concatenate([rows, old])
+            gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
             self._touch(int(row))
             self._set_status(int(row), REMOVED)
@@ -307,7 +308,7 @@ class Mapper:
                               f"views in the session that created it (needs {min_detections}"
                               + (f" and {min_share:.0%} of its clear views)" if min_share else ")")))
         self._settle()
-        return len(rows)
+        return len(rows) + gone
 
     # -- applying decisions ------------------------------------------------------------------
     def _set_status(self, row: int, status: int) -> None:
