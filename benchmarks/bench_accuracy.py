@@ -142,7 +142,8 @@ def map_house(h: Path, metric: str, policy: str, laps: int, args, cal) -> list:
     return out
 
 
-def main():
+def house_arguments() -> argparse.ArgumentParser:
+    """The options that say which houses and which config (shared with bench_breakdown.py)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--houses", type=int, default=4)
     ap.add_argument("--scene", default="small")
@@ -152,6 +153,11 @@ def main():
                     help="the simulator's profile (default realistic)")
     ap.add_argument("--config", help="ltc config file (e.g. docs/paper.yaml for the paper's behaviour)")
     ap.add_argument("--set", dest="sets", action="append", default=[], help="ltc config override")
+    return ap
+
+
+def main():
+    ap = house_arguments()
     ap.add_argument("--sim", dest="sim", action="append", default=[], help="simulator option override")
     ap.add_argument("--combos", default="all", help="all, or e.g. vertex/non-detection")
     ap.add_argument("--calibrate", action="store_true",

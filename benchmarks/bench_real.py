@@ -34,7 +34,8 @@ from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
 
-SHARED = ROOT.parent / "shared"
+# ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
+SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
 
 # What is in view, from the recordings' READMEs: (fewest, most) per class; classes not listed
 # should not be in the map at all (person never). The READMEs count by eye: "a few" books.
@@ -87,9 +88,10 @@ class BenchPlugin:
 
 
 def dining_room(tmp: Path) -> Path:
-    from tests.test_dining_room import make_recording
+    import tests.test_dining_room as dr
 
-    return make_recording(tmp / "dining-room")
+    dr.DATA = SHARED / "data" / "dining-room"  # the test looks beside the checkout only
+    return dr.make_recording(tmp / "dining-room")
 
 
 def census(map_path) -> tuple[Counter, set]:

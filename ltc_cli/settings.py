@@ -20,6 +20,7 @@ class ModelingSettings(TypedDict):
     min_depth: float
     max_depth: float
     edge_jump: Optional[float]
+    picture_flatness: Optional[float]
     clustering: str
     eps: float
     min_samples: int
@@ -42,6 +43,8 @@ class AssociationSettings(TypedDict):
     containment_other_class: Optional[float]
     other_class_volume_ratio: Optional[float]
     partial_adjoin_gap: Optional[float]
+    merge_other_class_iou: Optional[float]
+    merge_containment: Optional[float]
     merge: bool
 
 
@@ -49,6 +52,7 @@ class IntegrationSettings(TypedDict):
     erosion: float
     max_weight: Optional[float]
     unassigned_score: str
+    relabel_weight: str
 
 
 class MaintenanceSettings(TypedDict):
@@ -71,6 +75,7 @@ class MaintenanceSettings(TypedDict):
     min_detections: int
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
+    spare_frames: Optional[int]
     ray_step: int
     depth_tolerance: float
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.geometry.boxes import SHIFTS, Boxes
-from ltc_cli.geometry.polygons import convex_intersection_area
+from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
 
 
 def vertex_distance(det: Boxes, cands: Boxes, min_visible_pairs: int = 3):
@@ -271,3 +271,42 @@ def adjoining_partial(gaps: np.ndarray, same_class: np.ndarray, cand_partial: np
     if not ok.any():
         return -1
     return int(np.where(ok, gaps, np.inf).argmin())
+
+
+def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_volume_ratio: float | None
+                  ) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view) of different top classes that are one object under two
+    labels: footprints overlapping by XY IoU at least ``min_iou`` and volumes similar
+    (:func:`similar_volume`). [(1 - IoU, a, b)], a < b, the most overlapping first; none when
+    ``min_iou`` is None.
+
+    A detector that calls a chair "couch" in runs of nearby views makes a couch object beside the
+    chair object: the other-class threshold of eq. 2 is tighter and the two boxes, each from a few
+    views, rarely share vertices closely enough. Sitting on the same footprint with a similar volume,
+    they are one thing; which label it gets is for the class evidence to say (eq. 3).
+    """
+    m = len(boxes)
+    if min_iou is None or m < 2:
+        return []
+    iou, _ = pairwise_ious_arrays(boxes.center, boxes.yaw, boxes.size, boxes.center, boxes.yaw, boxes.size)
+    vol = np.prod(boxes.size, axis=1)
+    ok = (iou >= min_iou) & (top[:, None] != top[None, :]) & similar_volume(vol[:, None], vol[None, :],
+                                                                         other_volume_ratio)
+    a, b = np.nonzero(np.triu(ok, 1))
+    return sorted((1.0 - float(iou[i, j]), int(i), int(j)) for i, j in zip(a, b))
+
+
+def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict,
+                reach: float | None = None) -> list[tuple[float, int, int]]:
+    """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
+    association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
+    inside the other by ``merge_containment``, default ``containment``), then one object under two
+    labels (:func:`relabel_pairs`, keys past any distance). The overlap rules all stand down with
+    ``containment`` off (the paper: vertex distance only). ``reach``: as for duplicate_pairs."""
+    overlap = a_cfg["containment"] is not None
+    pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
+                            overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
+                            a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach)
+    two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
+                               a_cfg["other_class_volume_ratio"])
+    return pairs + [(1e6 + k, a, b) for k, a, b in two_labels]

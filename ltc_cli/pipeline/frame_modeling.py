@@ -14,6 +14,7 @@ import numpy as np
 
 from ltc_cli.map.model import top_class
 from ltc_cli.pipeline.modeling import ModeledDetections, model_detections
+from ltc_cli.pipeline.pictures import flat_on_wall
 from ltc_cli.types import Intrinsics
 
 
@@ -78,6 +79,10 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     top = np.array([int(top_class(v)) for v in scores], dtype=int)
     if flags.moving[top].any():  # people and animals are never map objects
         keep = np.flatnonzero(~flags.moving[top])
+        masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
+    flatness = config["modeling"]["picture_flatness"]
+    if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
+        keep = [i for i, m in enumerate(masks) if not flat_on_wall(m, depth_m, intr, T_map_camera, flatness)]
         masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,

@@ -22,6 +22,23 @@ def fuse_scores(s_i: np.ndarray, s_j: np.ndarray, D: float) -> np.ndarray:
     return num / num.sum()
 
 
+def label_weight(capped: float, observations: float, same_label: bool, mode: str) -> float:
+    """D of eq. 3 for one detection's class vector.
+
+    ``capped``: the object's capped weight; ``observations``: all its observations so far.
+    mode "capped": always the capped weight (an exponential average over the last few labels).
+    mode "all": a detection whose top class differs from the object's is fused with the weight of
+    every observation (the paper's running mean), one that agrees with the capped weight. A detector
+    that calls a chair "couch" in a third of the views does so in runs of nearby views; with the
+    capped weight alone the last run decides the label, while the cap is only needed so that misses
+    can overtake a class (removal). With "all", the label follows the majority of the evidence, and
+    a first wrong label still gives way once most detections say otherwise.
+    """
+    if mode == "all" and not same_label:
+        return max(float(capped), float(observations))
+    return float(capped)
+
+
 def _corresponding_visible(src: Box, dst: Box) -> np.ndarray:
     """src's visible flags (8,) re-indexed onto dst's vertices by the best cyclic shift."""
     _, shift = vertex_distance(src.as_boxes(), dst.as_boxes(), min_visible_pairs=9)

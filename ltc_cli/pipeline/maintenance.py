@@ -277,6 +277,21 @@ def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min
     return weak
 
 
+def found_again(first_session: np.ndarray, last_session: np.ndarray, last_frame: np.ndarray, session: int,
+                frame: int, window: int) -> np.ndarray:
+    """(M,) bool: objects of an earlier session detected in this one at most ``window`` frames ago.
+
+    Within one pass a detector's misses of an object it found again moments ago say more about the
+    detector (an angle it does not know, blur, a run of correlated misses) than about the object:
+    things are rarely taken away while the robot looks at them. Such misses are not counted. The
+    window is short so that an old box that catches one stray detection (a moved chair's old place
+    next to another chair) still collects misses for the rest of the session. Objects created in
+    this session are not spared: they have yet to show that they are more than a detector's error.
+    """
+    return ((np.asarray(first_session) < session) & (np.asarray(last_session) == session)
+            & (frame - np.asarray(last_frame) <= window))
+
+
 def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None) -> np.ndarray:
     """(M,) bool: objects whose visible pixels the camera mostly saw through (at least ``share`` of
     them with observed depth beyond the box; None: never)."""

@@ -17,12 +17,12 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, containing_candidate, containment, footprint_gaps, duplicate_pairs, greedy_merges, half_diagonals,
-    match_reach, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
+    adjoining_partial, containing_candidate, containment, footprint_gaps, greedy_merges, half_diagonals, match_reach,
+    merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
 )
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, merge_objects
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects
 from ltc_cli.pipeline.maintenance import (
-    camera_view, class_hit_counts, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
+    camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
@@ -197,7 +197,7 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range)
+            missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index)
             vectors = self.non_detection_vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
@@ -251,7 +251,7 @@ class Mapper:
                                      a_cfg["partial_adjoin_gap"])
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
-    def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range):
+    def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
         """(missed (M,), clear (M,), empty (M,)) bool over in-view rows: which get a non-detection,
         as the maintenance policy decides; which were clearly visible (enough pixels to say so); and
         which of the missed ones the depth showed to be free space."""
@@ -263,6 +263,10 @@ class Mapper:
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
+        if m_cfg["spare_frames"] is not None:
+            t = self.map.objects
+            missed &= ~found_again(t.first_session[rows], t.last_session[rows], t.last_frame[rows], self.session,
+                                   frame_index, m_cfg["spare_frames"])
         empty = missed & seen_empty(vis_px, empty_px, m_cfg["seen_empty_share"])
         if missed.any():
             # A miss where the depth shows free space is not the detector's word but the camera's:
@@ -287,6 +291,7 @@ class Mapper:
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
         rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share)]
         absent = self.cfg["maintenance"]["absent_after_views"]
+        gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
             # Objects of earlier sessions seen clearly in at least ``absent`` frames of this one and
@@ -300,7 +305,7 @@ class Mapper:
                 self._log(frame_index, frame_key, "removed", row + 1,
                           detail=(f"other: clearly visible in {int(t.clear_in_session[row])} frames of this session, "
                                   "detected in none"))
-            rows = np.concatenate([rows, old])
+            gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
             self._touch(int(row))
             self._set_status(int(row), REMOVED)
@@ -309,7 +314,7 @@ class Mapper:
                               f"views in the session that created it (needs {min_detections}"
                               + (f" and {min_share:.0%} of its clear views)" if min_share else ")")))
         self._settle()
-        return len(rows)
+        return len(rows) + gone
 
     # -- applying decisions ------------------------------------------------------------------
     def _set_status(self, row: int, status: int) -> None:
@@ -344,7 +349,9 @@ class Mapper:
         else:
             new = integrate_box(det_box, obj, 1.0, self._weight(row), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         t.set_box(row, new)
-        t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], self._weight(row))  # eq. 3
+        w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
+                         int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
+        t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], w)  # eq. 3
         t.cols["n_det"][row] += 1
         self._seen(row, frame_index)
         self.index.insert(row, new.center, new.size)
@@ -382,10 +389,8 @@ class Mapper:
         if rows.size < 2:
             return 0
         a_cfg = self.cfg["association"]
-        pairs = duplicate_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance,
-                                a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
-                                a_cfg["containment"], a_cfg["containment_other_class"],
-                                a_cfg["other_class_volume_ratio"], match_reach(self.metric, a_cfg))
+        pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
+                            match_reach(self.metric, a_cfg))
         merges = greedy_merges(pairs, rows + 1)
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
@@ -397,8 +402,12 @@ class Mapper:
         self._touch(drop)
         i_cfg = self.cfg["integration"]
         b_keep, b_drop = t.box(keep), t.box(drop)
-        box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], self._weight(keep),
-                                    self._weight(drop), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+        # Two labels of one object: each class vector weighs as its observations (relabel_weight all).
+        same = int(top_class(t.scores[keep])) == int(top_class(t.scores[drop]))
+        w_keep, w_drop = (label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same, i_cfg["relabel_weight"])
+                          for r in (keep, drop))
+        box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], w_keep, w_drop,
+                                    i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         if self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep):
             box = max(b_keep, b_drop, key=lambda b: float(np.prod(b.size)))  # never the smaller one's
         t.set_box(keep, box)

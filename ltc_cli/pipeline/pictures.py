@@ -1,0 +1,78 @@
+"""Pictures on walls: detections that are flat on the wall around them are not objects.
+
+A detector takes a poster or a painting for a tv (or a screen for a picture of one) from every view
+of it, so the confirmation rules cannot tell it from furniture. Depth can: the pixels of a picture
+lie on the same vertical plane as the wall around it, while a tv, a cabinet or a plant stands out
+from what is behind it. Pure numpy; stage 1 (frame_modeling.py) drops such detections.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from ltc_cli.types import Intrinsics
+
+
+def _points_map(v: np.ndarray, u: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray):
+    """Map-frame points (N, 3) of pixels (v, u) with a depth reading."""
+    z = depth_m[v, u]
+    ok = z > 0
+    z, u, v = z[ok], u[ok], v[ok]
+    cam = np.stack([(u - intr.cx) * z / intr.fx, (v - intr.cy) * z / intr.fy, z], axis=-1)
+    return cam @ T_map_camera[:3, :3].T + T_map_camera[:3, 3]
+
+
+def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray,
+                 tolerance: float, band_px: int = 10, gap_px: int = 3, max_tilt: float = 0.3,
+                 min_points: int = 40, step: int = 3) -> bool:
+    """True when the detection (mask (H, W) bool) lies flat on a wall: the pixels in a band around
+    the mask (``gap_px`` to ``gap_px + band_px`` pixels out, past where masks bleed) fit one plane,
+    that plane is vertical (|normal z| <= ``max_tilt``; map z is up), 80 % of the band lies within
+    ``tolerance`` of it, and the mask's own pixels lie within ``tolerance`` of it (median distance;
+    fewer than half of them standing out towards the camera).
+
+    A picture lying on a table (a book, a keyboard) is on a horizontal surface and never counts:
+    only walls hang pictures that detectors mistake for screens.
+    """
+    # On a grid of every ``step``-th pixel: the test needs a few hundred points, not every pixel,
+    # and a square maximum filter is the cheapest dilation.
+    h, w = mask.shape
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return False
+    pad = gap_px + band_px
+    v0, v1 = max(0, rows[0] - pad), min(h, rows[-1] + pad + 1)
+    u0, u1 = max(0, cols[0] - pad), min(w, cols[-1] + pad + 1)
+    # A few thousand grid cells whatever the mask's size.
+    step = max(step, int(np.ceil(np.sqrt((v1 - v0) * (u1 - u0) / 4000.0))))
+    crop = mask[v0:v1:step, u0:u1:step]
+    gap, reach = -(-gap_px // step), -(-(gap_px + band_px) // step)
+    near = ndimage.maximum_filter(crop, size=2 * gap + 1, mode="constant")
+    band = ndimage.maximum_filter(crop, size=2 * reach + 1, mode="constant") & ~near
+    bv, bu = np.nonzero(band)
+    mv, mu = np.nonzero(crop)
+    bv, bu, mv, mu = bv * step + v0, bu * step + u0, mv * step + v0, mu * step + u0
+    z_ring, z_in = depth_m[bv, bu], depth_m[mv, mu]
+    z_ring, z_in = z_ring[z_ring > 0], z_in[z_in > 0]
+    if z_ring.size < min_points or z_in.size < min_points // 4:
+        return False
+    if np.median(z_ring) - np.median(z_in) > 4 * tolerance:
+        return False  # it stands well in front of what is around it: the quick answer
+    ring = _points_map(bv, bu, depth_m, intr, T_map_camera)
+    inside = _points_map(mv, mu, depth_m, intr, T_map_camera)
+    if len(ring) < min_points or len(inside) < min_points // 4:
+        return False
+    centre = np.median(ring, axis=0)
+    _, _, vt = np.linalg.svd(ring - centre, full_matrices=False)
+    normal = vt[-1]
+    if abs(normal[2]) > max_tilt:
+        return False  # not a wall
+    if np.mean(np.abs((ring - centre) @ normal) <= tolerance) < 0.8:
+        return False  # the surroundings are not one surface (a thing in front of several)
+    d = (inside - centre) @ normal
+    # Oriented towards the camera: a thing in front of the wall has all its points on that side.
+    cam = T_map_camera[:3, 3]
+    if (cam - centre) @ normal < 0:
+        d = -d
+    return bool(np.median(np.abs(d)) <= tolerance and np.mean(d > tolerance) < 0.5)

@@ -1,0 +1,64 @@
+"""The error breakdown (ltc_cli/tools/breakdown.py) on a hand-built map whose every error's cause is
+known by construction."""
+
+from ltc_cli.tools.breakdown import false_positive_causes, id_change_causes, missed_causes, tally
+from ltc_cli.tools.evaluate import evaluate
+
+
+def obj(i, cls, x, sx, sy=None, seen=None):
+    o = {"id": i, "class": cls, "center": [x, 0.0, 0.5], "yaw": 0.0, "size": [sx, sy or sx, 1.0]}
+    if seen is not None:
+        o["seen_pixels"] = seen
+    return o
+
+
+GT = [obj(1, "chair", 0.0, 0.5, seen=900), obj(2, "dining table", 3.0, 1.5, 0.8, seen=900),
+      obj(3, "cup", 6.0, 0.1, seen=40), obj(4, "potted plant", 9.0, 0.4, seen=500),
+      obj(5, "bowl", 15.0, 0.2, seen=0)]
+EARLIER = [obj(6, "sink", 12.0, 0.6)]  # there in the lap before, gone now
+MAP = [obj(11, "chair", 0.02, 0.5),  # TP on the chair
+       obj(12, "chair", 0.3, 0.5),  # a second box on the chair: duplicate
+       obj(13, "tv", 20.0, 0.6, 0.05),  # on the poster: phantom
+       obj(14, "bottle", 9.0, 0.3),  # on the plant, wrong class: mislabel
+       # 0.5 x 0.8 of the table's 1.5 x 0.8 overlap: XY IoU 0.4 / 2.0 = 0.2 <= 0.25
+       obj(15, "dining table", 4.0, 1.5, 0.8),
+       obj(16, "couch", 30.0, 1.0),  # nothing there
+       obj(17, "sink", 12.0, 0.6)]  # where the sink stood: ghost
+POSTER = [obj(30000, "tv", 20.1, 0.01, 0.7)]
+
+
+def test_false_positives_by_cause():
+    res = evaluate(MAP, GT, previous_gt=[EARLIER])
+    causes = false_positive_causes(res, MAP, GT, POSTER)
+    assert causes == {12: "duplicate", 13: "phantom", 14: "mislabel", 15: "misplaced", 16: "other", 17: "ghost"}
+    assert tally(causes, ("phantom", "other", "x"))["x"] == 0
+    # A second table box on the table, over a pile of clutter (a phantom) on it: a duplicate of the
+    # table, not a phantom (an object of its class stands there).
+    clutter = [obj(30001, "book", 2.2, 0.3)]
+    second = MAP + [obj(18, "dining table", 2.2, 0.4)]  # XY IoU 0.06 / 1.3 with the table
+    res = evaluate(second, GT, previous_gt=[EARLIER])
+    assert false_positive_causes(res, second, GT, clutter)[18] == "duplicate"
+
+
+def test_missed_objects_by_cause():
+    res = evaluate(MAP, GT, previous_gt=[EARLIER])
+    seen = {1, 2, 3, 4}  # the bowl was never seen: not a cause of anything
+    assert missed_causes(res, MAP, GT, seen) == {2: "loose", 3: "never", 4: "mislabel"}
+    removed_cup = [obj(21, "cup", 6.01, 0.1)]
+    assert missed_causes(res, MAP, GT, seen, removed_eq4=removed_cup)[3] == "deleted_eq4"
+    assert missed_causes(res, MAP, GT, seen, removed_absent=removed_cup)[3] == "deleted_absent"
+    assert missed_causes(res, MAP, GT, seen, removed_unconfirmed=removed_cup)[3] == "unconfirmed"
+    # One chair box over two chairs: the second chair is "merged".
+    two = GT + [obj(7, "chair", 0.45, 0.5, seen=900)]
+    wide = [obj(11, "chair", 0.2, 1.0)]
+    res2 = evaluate(wide, two)
+    assert missed_causes(res2, wide, two, {1, 7})[7 if res2["matches"][0]["gt_id"] == 1 else 1] == "merged"
+
+
+def test_lost_ids_by_cause():
+    before = {"matches": [{"gt_id": 1, "map_id": 1}, {"gt_id": 2, "map_id": 5}, {"gt_id": 3, "map_id": 6},
+                          {"gt_id": 4, "map_id": 7}]}
+    after = {"matches": [{"gt_id": 1, "map_id": 8}, {"gt_id": 3, "map_id": 9}, {"gt_id": 4, "map_id": 3}]}
+    status = {1: "removed", 5: "active", 6: "merged", 7: "active"}.get
+    assert id_change_causes(before, after, status, [1, 2, 3, 4]) == {
+        1: "removed", 2: "unmatched", 3: "merged", 4: "rematched"}
