@@ -14,7 +14,7 @@ from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame
 from ltc_cli.pipeline.integration import label_weight
 from ltc_cli.pipeline.maintenance import found_again
 from ltc_cli.pipeline.mapper import Mapper
-from ltc_cli.pipeline.pictures import flat_on_wall
+from ltc_cli.pipeline.pictures import flat_on_wall, square_dilation
 from tests.scene import INTR, T_world_camera, render
 from tests.test_identity import CHAIR_BOX, CHAIR_FACE, CLASSES, chair_vector
 
@@ -195,3 +195,14 @@ def test_an_absent_object_is_removed_once():
     assert mapper.prune_unconfirmed(2, -1, "end", None) == 1
     removals = [e.detail for e in mapper.map.events if e.kind == "removed" and e.object_id == row + 1]
     assert len(removals) == 1 and removals[0].startswith("other: clearly visible in 5 frames")
+
+
+def test_square_dilation_is_scipys_maximum_filter():
+    from scipy import ndimage
+
+    rng = np.random.default_rng(3)
+    for shape, share, radius in (((40, 50), 0.02, 1), ((33, 17), 0.1, 4), ((5, 9), 0.3, 6), ((60, 60), 0.0, 2)):
+        mask = rng.random(shape) < share
+        mask[0, -1] = True  # a pixel at the border
+        expected = ndimage.maximum_filter(mask, size=2 * radius + 1, mode="constant")
+        np.testing.assert_array_equal(square_dilation(mask, radius), expected)

@@ -8,8 +8,8 @@ from what is behind it. Pure numpy; stage 1 (frame_modeling.py) drops such detec
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
-from scipy import ndimage
 
 from ltc_cli.types import Intrinsics
 
@@ -21,6 +21,15 @@ def _points_map(v: np.ndarray, u: np.ndarray, depth_m: np.ndarray, intr: Intrins
     z, u, v = z[ok], u[ok], v[ok]
     cam = np.stack([(u - intr.cx) * z / intr.fx, (v - intr.cy) * z / intr.fy, z], axis=-1)
     return cam @ T_map_camera[:3, :3].T + T_map_camera[:3, 3]
+
+
+def square_dilation(mask: np.ndarray, radius: int) -> np.ndarray:
+    """(H, W) bool: pixels within ``radius`` (a (2r+1)-square) of the mask; nothing outside the
+    image counts. ndimage.maximum_filter(mask, 2r + 1, mode="constant"), by OpenCV: an ingest
+    does not import scipy.ndimage (tests/test_accuracy_rules.py checks the two agree)."""
+    kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+    out = cv2.dilate(np.ascontiguousarray(mask).view(np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return out.view(bool)
 
 
 def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray,
@@ -48,8 +57,8 @@ def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_
     step = max(step, int(np.ceil(np.sqrt((v1 - v0) * (u1 - u0) / 4000.0))))
     crop = mask[v0:v1:step, u0:u1:step]
     gap, reach = -(-gap_px // step), -(-(gap_px + band_px) // step)
-    near = ndimage.maximum_filter(crop, size=2 * gap + 1, mode="constant")
-    band = ndimage.maximum_filter(crop, size=2 * reach + 1, mode="constant") & ~near
+    near = square_dilation(crop, gap)
+    band = square_dilation(crop, reach) & ~near
     bv, bu = np.nonzero(band)
     mv, mu = np.nonzero(crop)
     bv, bu, mv, mu = bv * step + v0, bu * step + u0, mv * step + v0, mu * step + u0
