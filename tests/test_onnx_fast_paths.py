@@ -31,15 +31,7 @@ def pillow_resize(rgb: np.ndarray, width: int, height: int) -> np.ndarray:
 
 def four_corner_sample(grid, ys, xs):
     """The bilinear sampling the detectors used before: four corners gathered per output pixel."""
-    h, w = grid.shape
-    ys = np.clip(ys, 0.0, h - 1.0)
-    xs = np.clip(xs, 0.0, w - 1.0)
-    y0 = np.floor(ys).astype(np.int64)
-    x0 = np.floor(xs).astype(np.int64)
-    y1 = np.minimum(y0 + 1, h - 1)
-    x1 = np.minimum(x0 + 1, w - 1)
-    wy = (ys - y0)[:, None]
-    wx = (xs - x0)[None, :]
+    y0, y1, wy, x0, x1, wx = onnx_common.bilinear_taps(*grid.shape, ys, xs)  # the rows and columns as before
     top = grid[y0][:, x0] * (1 - wx) + grid[y0][:, x1] * wx
     bottom = grid[y1][:, x0] * (1 - wx) + grid[y1][:, x1] * wx
     return top * (1 - wy) + bottom * wy

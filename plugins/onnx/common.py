@@ -73,27 +73,32 @@ def frame_rgb(frame: Frame, name: str) -> np.ndarray:
     return rgb
 
 
-def bilinear_sample(grid: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
-    """Sample grid (h, w) at the outer product of row coords ys (R,) and column coords xs (C,).
-
-    Coordinates are in grid cells with cell centres at integers (the ``align_corners=False``
-    convention); outside the grid the edge value is repeated. Returns (R, C).
-    """
-    h, w = grid.shape
+def bilinear_taps(h: int, w: int, ys: np.ndarray, xs: np.ndarray):
+    """(y0, y1, wy (R, 1), x0, x1, wx (1, C)): the two rows and columns of a grid (h, w) around each
+    row coordinate ys (R,) and column coordinate xs (C,), and the weight of the second of each
+    (cell centres at integers; beyond the edges the edge cell)."""
     ys = np.clip(ys, 0.0, h - 1.0)
     xs = np.clip(xs, 0.0, w - 1.0)
     y0 = np.floor(ys).astype(np.int64)
     x0 = np.floor(xs).astype(np.int64)
     y1 = np.minimum(y0 + 1, h - 1)
     x1 = np.minimum(x0 + 1, w - 1)
-    wy = (ys - y0)[:, None]
-    wx = (xs - x0)[None, :]
+    return y0, y1, (ys - y0)[:, None], x0, x1, (xs - x0)[None, :]
+
+
+def bilinear_sample(grid: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """Sample grid (h, w) at the outer product of row coords ys (R,) and column coords xs (C,).
+
+    Coordinates are in grid cells with cell centres at integers (the ``align_corners=False``
+    convention); outside the grid the edge value is repeated. Returns (R, C).
+    """
+    y0, y1, wy, x0, x1, wx = bilinear_taps(*grid.shape, ys, xs)
+    if y0.size == 0 or x0.size == 0:
+        return np.zeros((y0.size, x0.size))
     # Separable: each grid row that is sampled is interpolated along the columns once, (rows, C),
     # and the output rows pick two of them. The same products and sums, element by element, as
     # interpolating the four corners of every output pixel (so the same bits), for a fraction of
     # the work when the output has many more rows than the grid (a mask upsampled 8x).
-    if ys.size == 0 or xs.size == 0:
-        return np.zeros((ys.size, xs.size))
     lo, hi = int(y0.min()), int(y1.max()) + 1
     band = grid[lo:hi]
     along = band[:, x0] * (1 - wx) + band[:, x1] * wx
