@@ -10,7 +10,12 @@
    ``--openvino-python`` names one that has;
 4. end-to-end ``ltc ingest`` of the 232 real tum-fr1-rpy frames with the fp32 model, ``--jobs 1``
    and ``--jobs 2``: frames/s (wall) and CPU ms per frame; with openvino too when available
-   (``--jobs 2``, f32 and bf16). The load average is printed before and after.
+   (``--jobs 2``, f32 and bf16). The load average is printed before and after;
+5. where the CPU of that ingest goes, per frame (``--jobs 1``, one intra-op thread): the fixed
+   cost (the same command again on the finished map: start-up, detector session, frame set-up,
+   map load), loading (depth, colour header, pose; then colour decoding), the detector's
+   letterbox, inference and post-processing (a probe timing each part), and the rest: mapping,
+   i.e. the four stages, checkpoints and the session's own loop.
 
 ``--baseline CMD`` runs items 1, 2 and 4 with another ltc too (e.g. a checkout of an older commit:
 ``--baseline "env PYTHONPATH=/tmp/old python -c 'from ltc_cli.cli import main; main()'"``), in the
@@ -19,7 +24,7 @@ child process (resource.getrusage), so other engineers' work on a shared machine
 times more than these.
 
     python benchmarks/bench_speed.py [--sim DIR] [--frames 30] [--repeat 7] [--baseline CMD]
-                                     [--openvino-python PATH] [--items 1,2,3,4] [--runs 1]
+                                     [--openvino-python PATH] [--items 1,2,3,4,5] [--runs 1]
 """
 
 from __future__ import annotations
@@ -144,6 +149,59 @@ def has_openvino(python: list[str]) -> bool:
     return done.returncode == 0 and done.stdout.strip() == "True"
 
 
+# -- 5. the CPU budget of a real-detector ingest --------------------------------------------------
+
+BUDGET_PROBE = """
+import json, resource, sys
+from ltc_cli.recordings.open import open_recording
+from ltc_cli.threads import mapping_threads
+from ltc_plugins.onnx.yolo_seg import YoloSegDetector
+limits = mapping_threads(1)
+limits.__enter__()
+det = YoloSegDetector.from_options(None, {"model": sys.argv[1], "threads": 1})
+refs = open_recording(sys.argv[2]).frames
+def cpu():
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+part = dict(load=0.0, colour=0.0, letterbox=0.0, inference=0.0)
+letterbox, session = det.letterbox, det.session
+class Timed:  # the session, its run timed
+    def __getattr__(self, name):
+        return getattr(session, name)
+    def run(self, *a):
+        c = cpu(); out = session.run(*a); part["inference"] += cpu() - c; return out
+def timed_letterbox(rgb):
+    c = cpu(); out = letterbox(rgb); part["letterbox"] += cpu() - c; return out
+det.session, det.letterbox = Timed(), timed_letterbox
+det.detect(refs[0].load())  # warm-up
+part = dict.fromkeys(part, 0.0)
+total = 0.0
+for ref in refs:
+    c0 = cpu(); frame = ref.load(); c1 = cpu(); frame.rgb; c2 = cpu(); det.detect(frame); c3 = cpu()
+    part["load"] += c1 - c0; part["colour"] += c2 - c1; total += c3 - c2
+part["post-processing"] = total - part["letterbox"] - part["inference"]
+print(json.dumps({k: v / len(refs) * 1e3 for k, v in part.items()}))
+"""
+
+
+def item_budget(tmp: Path) -> None:
+    m = tmp / "tum-budget.h5"
+    m.unlink(missing_ok=True)
+    cmd = [*LTC, "ingest", str(TUM), "--map", str(m), "--detector", "onnx-yolo-seg", "--set",
+           f"detector.options.model={MODELS['fp32']}", "--set", "detector.options.threads=1", "--jobs", "1"]
+    whole, _, out = run_cpu(cmd)
+    n = int(out.split(":")[1].split("frames ingested")[0])
+    fixed, _, _ = run_cpu(cmd)  # every frame is in the map now: what does not depend on the frames
+    _, _, out = run_cpu([sys.executable, "-c", BUDGET_PROBE, str(MODELS["fp32"]), str(TUM)])
+    parts = json.loads(out.strip().splitlines()[-1])
+    per_frame = whole / n * 1e3
+    rows = {"fixed (start-up, session, set-up, map)": fixed / n * 1e3, **parts}
+    rows["mapping (the rest)"] = per_frame - sum(rows.values())
+    print(f"5. CPU ms per frame of the fp32 ingest, --jobs 1, 1 intra-op thread ({n} frames): {per_frame:.1f}")
+    for name, ms in rows.items():
+        print(f"   {name:<40}: {ms:5.1f}")
+
+
 # -- 4. end to end --------------------------------------------------------------------------------
 
 def end_to_end(ltc: list[str], jobs: int, tmp: Path, tag: str, options: tuple = ()) -> tuple[float, float]:
@@ -226,7 +284,7 @@ def main() -> None:
     ap.add_argument("--openvino-python", metavar="CMD",
                     help="a Python command line with onnxruntime-openvino that imports ltc_cli and ltc_plugins, "
                          "e.g. \"env PYTHONPATH=/tmp/ltc-tree /tmp/ov-venv/bin/python\"")
-    ap.add_argument("--items", default="1,2,3,4", help="which figures to measure (default all)")
+    ap.add_argument("--items", default="1,2,3,4,5", help="which figures to measure (default all)")
     ap.add_argument("--runs", type=int, default=1, help="end-to-end runs of each kind (item 4)")
     args = ap.parse_args()
     items = {int(i) for i in args.items.split(",")}
@@ -242,6 +300,8 @@ def main() -> None:
             item_detector(args, ov)
         if 4 in items:
             item_end_to_end(args, ltcs, ov, tmp)
+        if 5 in items:
+            item_budget(tmp)
 
 
 if __name__ == "__main__":
