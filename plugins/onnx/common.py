@@ -102,7 +102,12 @@ def bilinear_sample(grid: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndar
     lo, hi = int(y0.min()), int(y1.max()) + 1
     band = grid[lo:hi]
     along = band[:, x0] * (1 - wx) + band[:, x1] * wx
-    return along[y0 - lo] * (1 - wy) + along[y1 - lo] * wy
+    out = along[y0 - lo]
+    out *= 1 - wy
+    bottom = along[y1 - lo]
+    bottom *= wy
+    out += bottom  # top (1 - wy) + bottom wy, in place
+    return out
 
 
 class OnnxDetector:

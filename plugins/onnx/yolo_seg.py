@@ -277,8 +277,10 @@ class YoloSegDetector(OnnxDetector):
         cls_scores = out0[4 : 4 + n_all]
         if self.class_idx.size != n_all:
             cls_scores = cls_scores[self.class_idx]  # (K, A)
-        best = cls_scores.argmax(axis=0)
-        conf = np.take_along_axis(cls_scores, best[None], axis=0)[0]
+        # The best class is only needed for the anchors that pass: the maximum (a fast reduction
+        # down the rows) picks them, the argmax runs on their columns alone. The same values: the
+        # maximum is the score at the argmax (and NaN, never a candidate, either way).
+        conf = cls_scores.max(axis=0)
         cand = np.flatnonzero(conf >= self.score_threshold)
         empty = (
             np.zeros((0, 4), np.float32), np.zeros(0, np.int64),
@@ -288,6 +290,8 @@ class YoloSegDetector(OnnxDetector):
             return empty
         if cand.size > MAX_NMS_CANDIDATES:
             cand = cand[np.argsort(-conf[cand], kind="stable")[:MAX_NMS_CANDIDATES]]
+        best = np.zeros(len(conf), dtype=np.int64)
+        best[cand] = cls_scores[:, cand].argmax(axis=0)
         cxcywh = preds[cand, :4].astype(np.float64)
         boxes_in = np.concatenate(
             [cxcywh[:, :2] - cxcywh[:, 2:] / 2, cxcywh[:, :2] + cxcywh[:, 2:] / 2], axis=1
@@ -324,7 +328,9 @@ class YoloSegDetector(OnnxDetector):
             nonempty[k] = inside.any()
         scores = cls_scores[:, cand].T.astype(np.float32)
         labels = best[cand]
-        return boxes[nonempty].astype(np.float32), labels[nonempty], scores[nonempty], masks[nonempty]
+        if not nonempty.all():  # (a copy of every mask otherwise)
+            boxes, labels, scores, masks = boxes[nonempty], labels[nonempty], scores[nonempty], masks[nonempty]
+        return boxes.astype(np.float32), labels, scores, masks
 
     def detect(self, frame: Frame) -> list[Detection]:
         """Instances in a frame: masks at the frame's resolution, scores aligned with ``classes``.
