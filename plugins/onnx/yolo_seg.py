@@ -14,8 +14,10 @@ Ultralytics' own predictor:
 
 Options (config ``detector.options``): ``model`` (path, required), ``score_threshold`` (0.25),
 ``nms_iou`` (0.45), ``mask_threshold`` (0.5), ``classes`` (keep only these names; default all),
-``class_names`` (override the model's names), ``max_detections`` (50), ``threads`` (1),
-``imgsz`` (input size for exports with dynamic height / width; default the model's ``imgsz`` or 640).
+``class_names`` (override the model's names), ``max_detections`` (50), ``threads`` (null: the cores
+divided by ``--jobs``), ``provider`` (cpu, openvino, auto), ``precision`` (f32; bf16 / f16 for
+OpenVINO), ``imgsz`` (input size for exports with dynamic height / width; default the model's
+``imgsz`` or 640).
 """
 
 from __future__ import annotations
