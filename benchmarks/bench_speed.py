@@ -15,7 +15,11 @@
    cost (the same command again on the finished map: start-up, detector session, frame set-up,
    map load), loading (depth, colour header, pose; then colour decoding), the detector's
    letterbox, inference and post-processing (a probe timing each part), and the rest: mapping,
-   i.e. the four stages, checkpoints and the session's own loop.
+   i.e. the four stages, checkpoints and the session's own loop;
+6. the same ``--jobs 2`` ingest in time (in-process, the library's ingest): start-up until the
+   first frame is mapped, then the steady rate (frames/s, CPU per frame, cores busy); with
+   openvino bf16 too when available. The steady rate is what ``--jobs`` overlaps; the start-up
+   (~1.5 s wall) is paid once.
 
 ``--baseline CMD`` runs items 1, 2 and 4 with another ltc too (e.g. a checkout of an older commit:
 ``--baseline "env PYTHONPATH=/tmp/old python -c 'from ltc_cli.cli import main; main()'"``), in the
@@ -24,7 +28,7 @@ child process (resource.getrusage), so other engineers' work on a shared machine
 times more than these.
 
     python benchmarks/bench_speed.py [--sim DIR] [--frames 30] [--repeat 7] [--baseline CMD]
-                                     [--openvino-python PATH] [--items 1,2,3,4,5] [--runs 1]
+                                     [--openvino-python PATH] [--items 1,2,3,4,5,6] [--runs 1]
 """
 
 from __future__ import annotations
@@ -202,6 +206,45 @@ def item_budget(tmp: Path) -> None:
         print(f"   {name:<40}: {ms:5.1f}")
 
 
+# -- 6. start-up and steady rate -----------------------------------------------------------------
+
+TIMELINE_PROBE = """
+import json, os, resource, sys, time
+t_start = time.perf_counter()
+from ltc_cli.config import load_config
+from ltc_cli.threads import mapping_threads
+out, model, tum, sets = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:]
+def cpu():
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+marks = []
+with mapping_threads(2):
+    from ltc_cli.ingest.session import ingest
+    cfg = load_config(None, ["detector.name=onnx-yolo-seg", f"detector.options.model={model}", *sets])
+    ingest([tum], out, cfg, jobs=2, on_frame=lambda s: marks.append((time.perf_counter(), cpu())))
+t_end = time.perf_counter()
+(t1, c1), (tn, cn) = marks[0], marks[-1]
+n = len(marks)
+print(json.dumps({"first": t1 - t_start, "fps": (n - 1) / (tn - t1), "ms": (cn - c1) / (n - 1) * 1e3,
+                  "cores": (cn - c1) / (tn - t1), "whole": n / (t_end - t_start)}))
+"""
+
+
+def item_timeline(ov: list[str] | None, tmp: Path) -> None:
+    print(f"6. --jobs 2 in time (load average {os.getloadavg()[0]:.2f}): start-up to the first frame mapped; "
+          "then frames/s, CPU ms per frame, cores busy")
+    runs = [("cpu f32", [sys.executable], [])]
+    if ov is not None:
+        runs.append(("openvino bf16", ov, ["detector.options.provider=openvino", "detector.options.precision=bf16"]))
+    for tag, python, sets in runs:
+        m = tmp / "tum-timeline.h5"
+        m.unlink(missing_ok=True)
+        _, _, out = run_cpu([*python, "-c", TIMELINE_PROBE, str(m), str(MODELS["fp32"]), str(TUM), *sets])
+        r = json.loads(out.strip().splitlines()[-1])
+        print(f"   {tag:<13}: start-up {r['first']:.2f} s; steady {r['fps']:5.1f} frames/s, {r['ms']:5.1f} ms, "
+              f"{r['cores']:.2f} cores; whole run {r['whole']:5.1f} frames/s")
+
+
 # -- 4. end to end --------------------------------------------------------------------------------
 
 def end_to_end(ltc: list[str], jobs: int, tmp: Path, tag: str, options: tuple = ()) -> tuple[float, float]:
@@ -293,14 +336,14 @@ def main() -> None:
     ap.add_argument("--openvino-python", metavar="CMD",
                     help="a Python command line with onnxruntime-openvino that imports ltc_cli and ltc_plugins, "
                          "e.g. \"env PYTHONPATH=/tmp/ltc-tree /tmp/ov-venv/bin/python\"")
-    ap.add_argument("--items", default="1,2,3,4,5", help="which figures to measure (default all)")
+    ap.add_argument("--items", default="1,2,3,4,5,6", help="which figures to measure (default all)")
     ap.add_argument("--runs", type=int, default=1, help="rounds of end-to-end runs (item 4); the best is printed")
     args = ap.parse_args()
     items = {int(i) for i in args.items.split(",")}
     ltcs = {"now": LTC}
     if args.baseline:
         ltcs = {"baseline": shlex.split(args.baseline), **ltcs}
-    ov = openvino_python(args) if items & {3, 4} else None
+    ov = openvino_python(args) if items & {3, 4, 6} else None
     with tempfile.TemporaryDirectory(prefix="bench-speed-") as tmp_name:
         tmp = Path(tmp_name)
         if items & {1, 2}:
@@ -311,6 +354,8 @@ def main() -> None:
             item_end_to_end(args, ltcs, ov, tmp)
         if 5 in items:
             item_budget(tmp)
+        if 6 in items:
+            item_timeline(ov, tmp)
 
 
 if __name__ == "__main__":
