@@ -53,3 +53,32 @@ def test_bad_provider_is_refused():
         from ltc_plugins.onnx.yolo_seg import YoloSegDetector
 
         YoloSegDetector.from_options(None, {"model": __file__, "provider": "cuda"})
+
+
+def test_precision_becomes_openvinos_hint():
+    assert execution_providers("openvino", [OPENVINO, CPU], 1, "x", "bf16") == [
+        (OPENVINO, {"device_type": "CPU", "num_of_threads": "1",
+                    "load_config": '{"CPU": {"INFERENCE_PRECISION_HINT": "bf16"}}'}), CPU]
+    assert execution_providers("openvino", [OPENVINO, CPU], 1, "x", "f32") == [
+        (OPENVINO, {"device_type": "CPU", "num_of_threads": "1"}), CPU]
+    assert execution_providers("auto", [CPU], 1, "x", "bf16") == [CPU]  # auto without OpenVINO: f32 on cpu
+    with pytest.raises(PluginError, match=r"^x: precision bf16 needs provider openvino"):
+        execution_providers("cpu", [OPENVINO, CPU], 1, "x", "bf16")
+
+
+@pytest.mark.filterwarnings("ignore:Specified provider")
+def test_openvino_that_does_not_start_is_an_error_not_a_silent_cpu_run(tmp_path, monkeypatch):
+    # onnxruntime only warns and runs on its CPU provider when a provider it is given cannot start.
+    pytest.importorskip("onnx")
+    ort = pytest.importorskip("onnxruntime")
+    if OPENVINO in ort.get_available_providers():
+        pytest.skip("onnxruntime-openvino is installed here")
+    from ltc_plugins.onnx import common
+    from ltc_plugins.onnx.yolo_seg import YoloSegDetector
+    from tests.test_onnx_detectors import YOLO_META, const_model, yolo_outputs
+
+    model = const_model(tmp_path / "tiny-seg.onnx", ("images", [1, 3, 32, 32]), yolo_outputs(), YOLO_META)
+    monkeypatch.setattr(common, "execution_providers", lambda *a: [(OPENVINO, {"device_type": "CPU"}), CPU])
+    with pytest.raises(PluginError, match="could not start its OpenVINO provider") as err:
+        YoloSegDetector.from_options(None, {"model": str(model), "provider": "openvino"})
+    assert err.value.path == str(model)

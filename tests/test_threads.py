@@ -22,13 +22,18 @@ def test_cores_is_the_affinity_mask():
 
 @pytest.mark.parametrize("jobs", [1, 2, 3, 64])
 def test_threads_per_job_divides_the_cores_among_the_jobs(jobs):
+    import cv2
+
     n = len(os.sched_getaffinity(0))
     assert threads.threads_per_job() == n  # outside an ingest: every core
+    cv_threads = cv2.getNumThreads()
     with threads.mapping_threads(jobs):
         assert threads.threads_per_job() == max(1, n // jobs)
+        assert cv2.getNumThreads() == 1
         assert len(blas_threads()) >= 3 and set(blas_threads()) == {1}  # numpy's, scipy's and OpenCV's
         assert float(np.ones((64, 64)) @ np.ones(64) @ np.ones(64)) == 64.0 * 64  # BLAS still works
     assert threads.threads_per_job() == n
+    assert cv2.getNumThreads() == cv_threads  # given back
 
 
 def test_onnx_detector_threads_default_to_the_share_of_its_job(tmp_path):

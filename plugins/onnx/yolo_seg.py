@@ -14,8 +14,10 @@ Ultralytics' own predictor:
 
 Options (config ``detector.options``): ``model`` (path, required), ``score_threshold`` (0.25),
 ``nms_iou`` (0.45), ``mask_threshold`` (0.5), ``classes`` (keep only these names; default all),
-``class_names`` (override the model's names), ``max_detections`` (50), ``threads`` (1),
-``imgsz`` (input size for exports with dynamic height / width; default the model's ``imgsz`` or 640).
+``class_names`` (override the model's names), ``max_detections`` (50), ``threads`` (null: the cores
+divided by ``--jobs``), ``provider`` (cpu, openvino, auto), ``precision`` (f32; bf16 / f16 for
+OpenVINO), ``imgsz`` (input size for exports with dynamic height / width; default the model's
+``imgsz`` or 640).
 """
 
 from __future__ import annotations
@@ -25,12 +27,12 @@ import math
 from functools import partial
 
 import numpy as np
-from PIL import Image
 
 from ltc_cli import hookimpl
 from ltc_cli.errors import PluginError
 from ltc_cli.types import Detection, Frame
 from ltc_plugins.onnx.common import OnnxDetector, bilinear_sample, fail, frame_rgb, options_schema
+from ltc_plugins.onnx.resize import resize_bilinear
 
 NAME = "onnx-yolo-seg"
 OPTIONS_SCHEMA = options_schema(
@@ -236,15 +238,18 @@ class YoloSegDetector(OnnxDetector):
         nw, nh = int(round(w0 * r)), int(round(h0 * r))
         left = int(round((iw - nw) / 2 - 0.1))
         top = int(round((ih - nh) / 2 - 0.1))
-        img = rgb if (nw, nh) == (w0, h0) else np.asarray(
-            Image.fromarray(rgb).resize((nw, nh), Image.BILINEAR)
+        img = resize_bilinear(rgb, nw, nh)  # Pillow's BILINEAR, bit for bit (resize.py)
+        # The input straight from the image (uint8 -> float, / 255 in the input's type: the values of
+        # a padded canvas's astype / 255 without building it), the padding as one constant.
+        one = np.empty((3, ih, iw), dtype=self.input_dtype)
+        one[:, :top] = one[:, top + nh :] = one[:, :, :left] = one[:, :, left + nw :] = (
+            self.input_dtype(PAD_VALUE) / self.input_dtype(255.0)
         )
-        canvas = np.full((ih, iw, 3), PAD_VALUE, dtype=np.uint8)
-        canvas[top : top + nh, left : left + nw] = img
-        x = canvas.transpose(2, 0, 1)[None].astype(self.input_dtype) / self.input_dtype(255.0)
+        np.divide(img.transpose(2, 0, 1), self.input_dtype(255.0), out=one[:, top : top + nh, left : left + nw])
+        x = one[None]
         if self.batch > 1:  # a fixed-batch export: fill the batch, read the first result
             x = np.repeat(x, self.batch, axis=0)
-        return np.ascontiguousarray(x), r, (left, top)
+        return x, r, (left, top)
 
     def predict(self, rgb: np.ndarray):
         """Run the model on one RGB image (H, W, 3) uint8.
@@ -270,9 +275,14 @@ class YoloSegDetector(OnnxDetector):
                     path=self.model_path,
                 )
         preds = out0.T  # (A, 4 + nc + nm)
-        cls_scores = preds[:, 4 : 4 + n_all][:, self.class_idx]  # (A, K)
-        best = cls_scores.argmax(axis=1)
-        conf = cls_scores[np.arange(len(preds)), best]
+        # Scores stay in the output's (class, anchor) layout: contiguous rows, no (A, K) copy.
+        cls_scores = out0[4 : 4 + n_all]
+        if self.class_idx.size != n_all:
+            cls_scores = cls_scores[self.class_idx]  # (K, A)
+        # The best class is only needed for the anchors that pass: the maximum (a fast reduction
+        # down the rows) picks them, the argmax runs on their columns alone. The same values: the
+        # maximum is the score at the argmax (and NaN, never a candidate, either way).
+        conf = cls_scores.max(axis=0)
         cand = np.flatnonzero(conf >= self.score_threshold)
         empty = (
             np.zeros((0, 4), np.float32), np.zeros(0, np.int64),
@@ -282,6 +292,8 @@ class YoloSegDetector(OnnxDetector):
             return empty
         if cand.size > MAX_NMS_CANDIDATES:
             cand = cand[np.argsort(-conf[cand], kind="stable")[:MAX_NMS_CANDIDATES]]
+        best = np.zeros(len(conf), dtype=np.int64)
+        best[cand] = cls_scores[:, cand].argmax(axis=0)
         cxcywh = preds[cand, :4].astype(np.float64)
         boxes_in = np.concatenate(
             [cxcywh[:, :2] - cxcywh[:, 2:] / 2, cxcywh[:, :2] + cxcywh[:, 2:] / 2], axis=1
@@ -300,6 +312,7 @@ class YoloSegDetector(OnnxDetector):
         prob = sigmoid(coefs @ protos.reshape(nm, -1)).reshape(-1, mh, mw)  # (N, mh, mw)
         ih, iw = self.input_hw
         masks = np.zeros((len(cand), h0, w0), dtype=bool)
+        nonempty = np.zeros(len(cand), dtype=bool)
         for k, (x1, y1, x2, y2) in enumerate(boxes):
             # The crop to the box is done at image resolution (pixels whose centre is in the box):
             # the same crop as in prototype space, without the 4-pixel staircase at the box edges.
@@ -312,11 +325,14 @@ class YoloSegDetector(OnnxDetector):
             # Image pixel centre -> input pixel -> prototype cell (cell centres at integers).
             xs = ((np.arange(u0, u1 + 1) + 0.5) * r + left) * (mw / iw) - 0.5
             ys = ((np.arange(v0, v1 + 1) + 0.5) * r + top) * (mh / ih) - 0.5
-            masks[k, v0 : v1 + 1, u0 : u1 + 1] = bilinear_sample(prob[k], ys, xs) > self.mask_threshold
-        scores = cls_scores[cand].astype(np.float32)
+            inside = bilinear_sample(prob[k], ys, xs) > self.mask_threshold
+            masks[k, v0 : v1 + 1, u0 : u1 + 1] = inside
+            nonempty[k] = inside.any()
+        scores = cls_scores[:, cand].T.astype(np.float32)
         labels = best[cand]
-        nonempty = masks.reshape(len(cand), h0 * w0).any(axis=1)
-        return boxes[nonempty].astype(np.float32), labels[nonempty], scores[nonempty], masks[nonempty]
+        if not nonempty.all():  # (a copy of every mask otherwise)
+            boxes, labels, scores, masks = boxes[nonempty], labels[nonempty], scores[nonempty], masks[nonempty]
+        return boxes.astype(np.float32), labels, scores, masks
 
     def detect(self, frame: Frame) -> list[Detection]:
         """Instances in a frame: masks at the frame's resolution, scores aligned with ``classes``.
