@@ -45,6 +45,7 @@ class AssociationSettings(TypedDict):
     partial_adjoin_gap: Optional[float]
     merge_other_class_iou: Optional[float]
     merge_containment: Optional[float]
+    merge_current_box: bool
     merge: bool
 
 
@@ -76,6 +77,7 @@ class MaintenanceSettings(TypedDict):
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
     spare_frames: Optional[int]
+    hidden_by_whole_box: bool
     ray_step: int
     depth_tolerance: float
 

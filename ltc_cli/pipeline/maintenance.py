@@ -127,6 +127,7 @@ def pixel_counts(
     depth_tolerance: float,
     depth_range: tuple[float, float],
     with_empty: bool = False,
+    hidden_by_whole_box: bool = False,
 ):
     """Pixels of each box that the camera should see: (visible (M,), projected (M,)), and with
     ``with_empty`` also empty (M,): those of the visible pixels whose observed depth lies beyond
@@ -138,6 +139,12 @@ def pixel_counts(
     by other map objects) and where the observed depth has a reading that is not nearer than the box
     surface by more than ``depth_tolerance`` (not hidden by something that is not in the map, such as
     a person). Counted at one ray per step x step block and scaled back to pixels.
+
+    ``hidden_by_whole_box``: another box hides a ray only when the ray leaves that box before it
+    enters this one (the other box lies wholly in front along the ray), not merely enters it first.
+    A cup on a table lies inside the table's box: every ray to the cup enters the table's box first,
+    so by the entry test alone the cup is never visible and never missed, and a cup taken away stays
+    in the map for ever. A chair in front of a cabinet still hides it (its box ends before).
     """
     m = len(boxes)
     if m == 0:
@@ -152,7 +159,9 @@ def pixel_counts(
                                  [d[:, a] for a in range(3)], with_exit=True)  # (Q,)
     in_range = np.isfinite(entry) & (entry >= depth_range[0]) & (entry <= depth_range[1])
     nearest = np.full(len(u), np.inf)
-    np.minimum.at(nearest, ray, entry)
+    # Entry: the first box a ray enters hides the others; whole box: a box hides what lies beyond
+    # its exit (a box's own exit is never before its entry, so it never hides itself).
+    np.minimum.at(nearest, ray, np.where(np.isfinite(entry), exit_, np.inf) if hidden_by_whole_box else entry)
     first = entry <= nearest[ray]
     obs = depth_m[v.astype(int), u.astype(int)][ray]
     seen = in_range & first & (obs > 0) & (obs >= entry - depth_tolerance)

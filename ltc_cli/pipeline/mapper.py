@@ -20,7 +20,7 @@ from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, greedy_merges, half_diagonals, match_reach,
     merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
 )
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects, stale_side
 from ltc_cli.pipeline.maintenance import (
     camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
@@ -258,7 +258,7 @@ class Mapper:
         m_cfg = self.cfg["maintenance"]
         vis_px, proj_px, empty_px = pixel_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
                                                  m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
-                                                 with_empty=True)
+                                                 with_empty=True, hidden_by_whole_box=m_cfg["hidden_by_whole_box"])
         scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
@@ -408,6 +408,10 @@ class Mapper:
                           for r in (keep, drop))
         box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], w_keep, w_drop,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+        side = stale_side(t.last_session[keep] == self.session, t.last_session[drop] == self.session) \
+            if self.cfg["association"]["merge_current_box"] else None
+        if side is not None:
+            box = b_keep if side == "keep" else b_drop  # the box of the one detected now
         if self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep):
             box = max(b_keep, b_drop, key=lambda b: float(np.prod(b.size)))  # never the smaller one's
         t.set_box(keep, box)

@@ -1,0 +1,87 @@
+"""The rules against ghosts that pile up over laps (docs/decisions.md, issue 9, third round): a merge
+of an object found now with one last seen in an earlier session takes the box found now, and a box
+hides another only when it lies wholly in front of it. Expected values worked out by hand."""
+
+import numpy as np
+import pytest
+
+from ltc_cli import plugins
+from ltc_cli.config import defaults
+from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
+from ltc_cli.pipeline.integration import stale_side
+from ltc_cli.pipeline.maintenance import pixel_counts
+from ltc_cli.pipeline.mapper import Mapper
+from tests.scene import INTR, T_world_camera, render
+from tests.test_accuracy_rules import every_miss_counts
+from tests.test_identity import CLASSES, chair_vector
+
+
+def test_stale_side_by_hand():
+    assert stale_side(True, False) == "keep"
+    assert stale_side(False, True) == "drop"
+    assert stale_side(True, True) is None
+    assert stale_side(False, False) is None
+
+
+@pytest.mark.parametrize("rule, last_sessions, expected_y, expected_sy", [
+    (True, (0, 1), 0.7, 1.0),    # the old chair (id 1) keeps its id, the box found now wins
+    (False, (0, 1), 0.35, 1.1),  # the paper: the observation-weighted mean (weights 5 and 5)
+    (True, (1, 1), 0.35, 1.1),   # both found in this session: the mean, as before
+])
+def test_a_merge_with_a_stale_object_takes_the_box_found_now(rule, last_sessions, expected_y, expected_sy):
+    """Chair A of session 0 (0.4 x 1.2 m at y 0) and chair B built in session 1 (0.4 x 1.0 at y 0.7):
+    0.4 of B's volume lies inside A, over merge_containment 0.3, so they merge after a frame of
+    session 1 (A, the older id, keeps). Both Defined with 20 detections (weight cap 5 each): the
+    mean has y (0 + 0.7) / 2 = 0.35 and length (1.2 + 1.0) / 2 = 1.1; B's box is y 0.7, length 1.0."""
+    cfg = every_miss_counts(defaults())
+    cfg["association"]["merge_current_box"] = rule
+    smap = SemanticMap.new(CLASSES)
+    t = smap.objects
+    rows = [t.append(center=[2.2, y, 0.6], yaw=0.0, size=[0.4, sy, 0.8], visible=np.ones(8, bool), defined=True,
+                     scores=chair_vector(), n_det=20, status=ACTIVE, first_session=first, last_session=last)
+            for y, sy, first, last in ((0.0, 1.2, 0, last_sessions[0]), (0.7, 1.0, 1, last_sessions[1]))]
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    for r in rows:
+        mapper.index.insert(r, t.center[r], t.size[r])
+    empty, _ = render([], wall_x=4.0)
+    mapper.process_frame(0, "0", [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    assert (t.status[rows[0]], t.status[rows[1]]) == (ACTIVE, MERGED)
+    assert t.center[rows[0]][1] == pytest.approx(expected_y, abs=1e-6)
+    assert t.size[rows[0]][1] == pytest.approx(expected_sy, abs=1e-6)
+
+
+def boxes(*rows):
+    """Axis-aligned Boxes from (x0, x1, y0, y1, z0, z1) rows."""
+    a = np.array(rows, dtype=float)
+    centers = np.stack([a[:, 0] + a[:, 1], a[:, 2] + a[:, 3], a[:, 4] + a[:, 5]], axis=1) / 2
+    sizes = np.stack([a[:, 1] - a[:, 0], a[:, 3] - a[:, 2], a[:, 5] - a[:, 4]], axis=1)
+    return Boxes(centers, np.zeros(len(a)), sizes, np.ones((len(a), 8), bool))
+
+
+CUP = (2.0, 2.2, -0.1, 0.1, 0.9, 1.1)      # its face: 0.2 x 0.2 m at 2 m: 50 x 50 px at f 500
+TABLE = (1.5, 2.7, -0.8, 0.8, 0.3, 1.15)   # a loose table box around the cup
+CHAIR = (1.0, 1.3, -0.3, 0.3, 0.5, 1.5)    # a box wholly in front of the cup
+
+
+@pytest.mark.parametrize("whole_box", [True, False])
+def test_a_cup_inside_a_table_box_is_visible_when_boxes_hide_only_what_lies_behind_them(whole_box):
+    """Depth: the cup's face at 2 m, a wall at 4 m. Every ray to the cup enters the table's box
+    first (x 1.5) but leaves it only at x 2.7, beyond the cup's face: the entry rule (the paper)
+    hides the whole cup, the whole-box rule hides none of it, 50 x 50 = 2500 px (sampled by one ray per 2 x 2 block: within 10 %)."""
+    depth, _ = render([CUP], wall_x=4.0)
+    vis, proj = pixel_counts(boxes(CUP, TABLE), T_world_camera(), depth, INTR, 2, 0.2, (0.3, 6.0),
+                             hidden_by_whole_box=whole_box)
+    assert proj[0] == pytest.approx(2500, rel=0.1)
+    assert vis[0] == (pytest.approx(2500, rel=0.1) if whole_box else 0)
+
+
+@pytest.mark.parametrize("whole_box", [True, False])
+def test_a_box_wholly_in_front_still_hides(whole_box):
+    """The chair's box ends at x 1.3, before the cup (2.0) and the table (1.5): it hides the cup's
+    rays (all of which pass through it: |y| <= 0.065, |z - 1| <= 0.065 at x 1.0-1.3) either way."""
+    depth, _ = render([CUP], wall_x=4.0)
+    vis, _ = pixel_counts(boxes(CUP, TABLE, CHAIR), T_world_camera(), depth, INTR, 2, 0.2, (0.3, 6.0),
+                          hidden_by_whole_box=whole_box)
+    assert vis[0] == 0
