@@ -76,6 +76,7 @@ class MaintenanceSettings(TypedDict):
     min_detections: int
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
+    absent_since_detection: bool
     spare_frames: Optional[int]
     hidden_by_whole_box: bool
     ray_step: int

@@ -8,13 +8,13 @@ import pytest
 from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
+from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
 from ltc_cli.pipeline.integration import stale_side
 from ltc_cli.pipeline.maintenance import pixel_counts
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
 from tests.test_accuracy_rules import every_miss_counts
-from tests.test_identity import CLASSES, chair_vector
+from tests.test_identity import CHAIR_BOX, CHAIR_FACE, CLASSES, chair_vector
 
 
 def test_stale_side_by_hand():
@@ -85,3 +85,37 @@ def test_a_box_wholly_in_front_still_hides(whole_box):
     vis, _ = pixel_counts(boxes(CUP, TABLE, CHAIR), T_world_camera(), depth, INTR, 2, 0.2, (0.3, 6.0),
                           hidden_by_whole_box=whole_box)
     assert vis[0] == 0
+
+
+@pytest.mark.parametrize("rule, detect_in_session_2, expected", [
+    (True, False, REMOVED),   # 3 + 3 = 6 clear views since its last detection >= 5
+    (False, False, ACTIVE),   # 3 < 5 in each session
+    (True, True, ACTIVE),     # detected in session 2: counted from 0 again (2 clear views since)
+])
+def test_clear_views_since_the_last_detection_add_up_over_sessions(rule, detect_in_session_2, expected):
+    """absent_after_views 5: a chair of session 0 seen clearly (the wall behind it, one view: one
+    counted non-detection, far from eq. 4's removal) in 3 frames of session 1 and 3 of session 2."""
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["absent_since_detection"] = rule
+    cfg["maintenance"]["seen_empty_share"] = None
+    smap = SemanticMap.new(CLASSES)
+    t = smap.objects
+    row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
+                   scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
+    empty, _ = render([], wall_x=4.0)
+    seen, masks = render([CHAIR_FACE], wall_x=4.0)
+    for session in (1, 2):
+        mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                        plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=session)
+        for k in range(3):
+            if session == 2 and detect_in_session_2 and k == 0:
+                mapper.process_frame(k, str(k), [masks[0]], [chair_vector(0.8)], seen, T_world_camera(), INTR,
+                                     (0.3, 6.0))
+            else:
+                mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+        mapper.prune_unconfirmed(2, -1, "end", None)
+        if session == 1:
+            assert (t.status[row], t.clear_since_det[row]) == (ACTIVE, 3)
+    assert t.status[row] == expected
+    assert t.clear_since_det[row] == (2 if detect_in_session_2 else 6)

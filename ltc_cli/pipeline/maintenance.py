@@ -307,3 +307,22 @@ def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None
     if share is None:
         return np.zeros(np.shape(visible_px), dtype=bool)
     return (np.asarray(visible_px) > 0) & (np.asarray(empty_px) >= share * np.asarray(visible_px))
+
+
+def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_session: np.ndarray,
+                      clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views: int,
+                      clear_since_det: np.ndarray | None = None) -> np.ndarray:
+    """(M,) bool: active objects of earlier sessions seen clearly in at least ``views`` frames of
+    this session and detected in none: a whole visit's worth of views, not one unlucky frame
+    (``clear_session`` holds the session of the clear views + 1, 0 for none yet).
+
+    With ``clear_since_det`` (clear views without a detection since the last detection, over
+    sessions), also those not detected in this session whose clear views since their last
+    detection reach ``views``: a chair taken away whose old place each lap sees clearly only two or
+    three times (the room's far corner) is as gone after two laps as one seen five times in one.
+    """
+    quiet = np.asarray(active) & (np.asarray(first_session) < session) & (np.asarray(last_session) < session)
+    gone = (np.asarray(clear_session) == session + 1) & (np.asarray(clear_in_session) >= views)
+    if clear_since_det is not None:
+        gone |= np.asarray(clear_since_det) >= views
+    return quiet & gone

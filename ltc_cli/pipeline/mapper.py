@@ -22,7 +22,7 @@ from ltc_cli.pipeline.association import (
 )
 from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects, stale_side
 from ltc_cli.pipeline.maintenance import (
-    camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
+    absent_in_session, camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
@@ -208,6 +208,7 @@ class Mapper:
                 if cols["clear_session"][row] != self.session + 1:
                     cols["clear_session"][row], cols["clear_in_session"][row] = self.session + 1, 0
                 cols["clear_in_session"][row] += 1
+            cols["clear_since_det"][rows[clear & ~matched]] += 1
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
                 res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
@@ -294,17 +295,15 @@ class Mapper:
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
-            # Objects of earlier sessions seen clearly in at least ``absent`` frames of this one and
-            # detected in none: a whole visit's worth of views, not one unlucky frame.
-            old = np.flatnonzero((t.status == ACTIVE) & (t.first_session < self.session)
-                                 & (t.last_session < self.session) & (t.clear_session == self.session + 1)
-                                 & (t.clear_in_session >= absent))
+            since = t.clear_since_det if self.cfg["maintenance"]["absent_since_detection"] else None
+            old = np.flatnonzero(absent_in_session(t.status == ACTIVE, t.first_session, t.last_session,
+                                                   t.clear_session, t.clear_in_session, self.session, absent, since))
             for row in old:
                 self._touch(int(row))
                 self._set_status(int(row), REMOVED)
                 self._log(frame_index, frame_key, "removed", row + 1,
-                          detail=(f"other: clearly visible in {int(t.clear_in_session[row])} frames of this session, "
-                                  "detected in none"))
+                          detail=(f"other: clearly visible in {int(t.clear_in_session[row])} frames of this session "
+                                  f"({int(t.clear_since_det[row])} since its last detection), detected in none"))
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
             self._touch(int(row))
@@ -325,6 +324,7 @@ class Mapper:
         cols = self.map.objects.cols
         cols["last_session"][row] = self.session
         cols["last_frame"][row] = frame_index
+        cols["clear_since_det"][row] = 0
 
     def _create(self, box: Box, s_det, frame_index, frame_key) -> int:
         t = self.map.objects
