@@ -8,7 +8,7 @@ What each setting means, and why its default, is written next to it in defaults.
 
 from __future__ import annotations
 
-from typing import Optional, TypedDict
+from typing import Union, Optional, TypedDict
 
 
 class ModelingSettings(TypedDict):
@@ -76,9 +76,9 @@ class MaintenanceSettings(TypedDict):
     min_detections: int
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
-    absent_since_detection: bool
+    absent_quiet_sessions: Optional[int]
     spare_frames: Optional[int]
-    hidden_by_whole_box: bool
+    hidden_by_whole_box: Union[bool, str]
     ray_step: int
     depth_tolerance: float
 

@@ -48,7 +48,7 @@ COLUMNS = {
     "clear_session": ((), np.int64),
     "clear_in_session": ((), np.int64),
     # Clear views without a detection since the object's last detection, over sessions
-    # (maintenance.absent_since_detection).
+    # (maintenance.absent_quiet_sessions).
     "clear_since_det": ((), np.int64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),

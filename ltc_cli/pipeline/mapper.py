@@ -197,18 +197,19 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index)
+            missed, clear, empty, clear_absent = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range,
+                                                              frame_index)
             vectors = self.non_detection_vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
             for row in rows[clear]:
                 self._touch(int(row))
                 cols["n_clear"][row] += 1
-                # clear_session holds session + 1 (0: no clear view yet, as maps before the column).
-                if cols["clear_session"][row] != self.session + 1:
-                    cols["clear_session"][row], cols["clear_in_session"][row] = self.session + 1, 0
-                cols["clear_in_session"][row] += 1
-            cols["clear_since_det"][rows[clear & ~matched]] += 1
+            # The absence rule's counts; clear_session holds session + 1 (0: none yet, old maps).
+            fresh = rows[clear_absent & (cols["clear_session"][rows] != self.session + 1)]
+            cols["clear_session"][fresh], cols["clear_in_session"][fresh] = self.session + 1, 0
+            cols["clear_in_session"][rows[clear_absent]] += 1
+            cols["clear_since_det"][rows[clear_absent & ~matched]] += 1
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
                 res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
@@ -253,13 +254,15 @@ class Mapper:
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
-        """(missed (M,), clear (M,), empty (M,)) bool over in-view rows: which get a non-detection,
-        as the maintenance policy decides; which were clearly visible (enough pixels to say so); and
-        which of the missed ones the depth showed to be free space."""
+        """(missed, clear, empty, clear for the absence rule), each (M,) bool over in-view rows: which
+        get a non-detection, as the maintenance policy decides; which were clearly visible (enough
+        pixels to say so); which of the missed ones the depth showed to be free space; and which
+        were clearly visible by ``hidden_by_whole_box`` ("absence": by the whole-box rule)."""
         m_cfg = self.cfg["maintenance"]
-        vis_px, proj_px, empty_px = pixel_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
-                                                 m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
-                                                 with_empty=True, hidden_by_whole_box=m_cfg["hidden_by_whole_box"])
+        whole = m_cfg["hidden_by_whole_box"]  # True: for every count; "absence": the absence rule's only
+        vis_px, proj_px, empty_px, *vis_absent = pixel_counts(
+            self.map.objects.boxes(rows), T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"],
+            depth_range, with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence")
         scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
@@ -275,7 +278,7 @@ class Mapper:
             t, view = self.map.objects, camera_view(T_map_camera)
             missed &= empty | new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
             t.cols["nondet_view"][rows[missed]] = view
-        return missed, vis_px >= need, empty
+        return missed, vis_px >= need, empty, (vis_absent or [vis_px])[0] >= need
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
                           min_share: float | None = None) -> int:
@@ -295,9 +298,9 @@ class Mapper:
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
-            since = t.clear_since_det if self.cfg["maintenance"]["absent_since_detection"] else None
             old = np.flatnonzero(absent_in_session(t.status == ACTIVE, t.first_session, t.last_session,
-                                                   t.clear_session, t.clear_in_session, self.session, absent, since))
+                                                   t.clear_session, t.clear_in_session, self.session, absent,
+                                                   t.clear_since_det, self.cfg["maintenance"]["absent_quiet_sessions"]))
             for row in old:
                 self._touch(int(row))
                 self._set_status(int(row), REMOVED)
