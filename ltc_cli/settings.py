@@ -77,6 +77,7 @@ class MaintenanceSettings(TypedDict):
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
     absent_quiet_sessions: Optional[int]
+    absent_quiet_views: Optional[int]
     spare_frames: Optional[int]
     hidden_by_whole_box: Union[bool, str]
     ray_step: int

@@ -10,7 +10,7 @@ from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
 from ltc_cli.pipeline.integration import stale_side
-from ltc_cli.pipeline.maintenance import pixel_counts
+from ltc_cli.pipeline.maintenance import absent_in_session, pixel_counts
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
 from tests.test_accuracy_rules import every_miss_counts
@@ -149,3 +149,22 @@ def test_a_cup_inside_a_table_box_counts_for_the_absence_rule_only(mode, clear_f
     cup = rows[0]
     assert t.clear_in_session[cup] == clear_for_absence and t.clear_since_det[cup] == clear_for_absence
     assert t.n_nondet[cup] == nondets and t.n_clear[cup] == nondets
+
+
+def test_absent_in_session_by_hand():
+    """Session 3, absent_after_views 7. Objects: 0 seen 7 times in this session, undetected (gone);
+    1 seen 6 times (stays); 2 last detected in session 1, 5 clear views since (gone with two quiet
+    sessions and 5 quiet views, not with 7); 3 last detected in session 2 (one quiet session: stays);
+    4 detected in this session (stays); 5 removed already; 6 created in this session (not judged)."""
+    active = np.array([1, 1, 1, 1, 1, 0, 1], bool)
+    first = np.array([0, 0, 0, 0, 0, 0, 3])
+    last = np.array([2, 2, 1, 2, 3, 0, 3])
+    clear_session = np.array([4, 4, 4, 4, 4, 4, 4])
+    in_session = np.array([7, 6, 3, 6, 9, 9, 9])
+    since = np.array([7, 6, 5, 6, 0, 9, 9])
+    gone = absent_in_session(active, first, last, clear_session, in_session, 3, 7)
+    assert gone.tolist() == [True, False, False, False, False, False, False]
+    gone = absent_in_session(active, first, last, clear_session, in_session, 3, 7, since, 2, 5)
+    assert gone.tolist() == [True, False, True, False, False, False, False]
+    gone = absent_in_session(active, first, last, clear_session, in_session, 3, 7, since, 2, None)
+    assert gone.tolist() == [True, False, False, False, False, False, False]

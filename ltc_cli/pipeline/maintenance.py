@@ -319,19 +319,22 @@ def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None
 
 def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_session: np.ndarray,
                       clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views: int,
-                      clear_since_det: np.ndarray | None = None, quiet_sessions: int | None = None) -> np.ndarray:
+                      clear_since_det: np.ndarray | None = None, quiet_sessions: int | None = None,
+                      quiet_views: int | None = None) -> np.ndarray:
     """(M,) bool: active objects of earlier sessions seen clearly in at least ``views`` frames of
     this session and detected in none: a whole visit's worth of views, not one unlucky frame
     (``clear_session`` holds the session of the clear views + 1, 0 for none yet).
 
     With ``quiet_sessions`` (and ``clear_since_det``: clear views without a detection since the
     last detection, over sessions), also those not detected in the last ``quiet_sessions``
-    sessions (this one included) whose clear views since their last detection reach ``views``: a
+    sessions (this one included) whose clear views since their last detection reach ``quiet_views``
+    (None: ``views``): a
     chair taken away whose old place each lap sees clearly only two or three times (the room's far
     corner) is as gone after two laps as one seen five times in one.
     """
     quiet = np.asarray(active) & (np.asarray(first_session) < session) & (np.asarray(last_session) < session)
     gone = (np.asarray(clear_session) == session + 1) & (np.asarray(clear_in_session) >= views)
     if quiet_sessions is not None and clear_since_det is not None:
-        gone |= (np.asarray(last_session) <= session - quiet_sessions) & (np.asarray(clear_since_det) >= views)
+        gone |= ((np.asarray(last_session) <= session - quiet_sessions)
+                 & (np.asarray(clear_since_det) >= (views if quiet_views is None else quiet_views)))
     return quiet & gone

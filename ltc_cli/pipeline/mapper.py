@@ -294,13 +294,14 @@ class Mapper:
         t = self.map.objects
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
         rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share)]
-        absent = self.cfg["maintenance"]["absent_after_views"]
+        m_cfg = self.cfg["maintenance"]
+        absent = m_cfg["absent_after_views"]
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
             old = np.flatnonzero(absent_in_session(t.status == ACTIVE, t.first_session, t.last_session,
                                                    t.clear_session, t.clear_in_session, self.session, absent,
-                                                   t.clear_since_det, self.cfg["maintenance"]["absent_quiet_sessions"]))
+                                                   t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"]))
             for row in old:
                 self._touch(int(row))
                 self._set_status(int(row), REMOVED)
