@@ -54,6 +54,7 @@ class IntegrationSettings(TypedDict):
     max_weight: Optional[float]
     unassigned_score: str
     relabel_weight: str
+    stale_box_weight: Optional[float]
 
 
 class MaintenanceSettings(TypedDict):

@@ -9,7 +9,8 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
-from ltc_cli.pipeline.integration import stale_side
+from ltc_cli.geometry.boxes import Box
+from ltc_cli.pipeline.integration import stale_side, stale_weight
 from ltc_cli.pipeline.maintenance import absent_in_session, pixel_counts
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
@@ -168,3 +169,31 @@ def test_absent_in_session_by_hand():
     assert gone.tolist() == [True, False, True, False, False, False, False]
     gone = absent_in_session(active, first, last, clear_session, in_session, 3, 7, since, 2, None)
     assert gone.tolist() == [True, False, False, False, False, False, False]
+
+
+def test_stale_weight_by_hand():
+    assert stale_weight(5.0, True, 1.0) == 1.0
+    assert stale_weight(5.0, False, 1.0) == 5.0
+    assert stale_weight(5.0, True, None) == 5.0
+    assert stale_weight(0.5, True, 1.0) == 0.5
+
+
+@pytest.mark.parametrize("cap, last_session, expected_y", [
+    (1.0, 0, 0.15),        # first detection in session 1 of a session-0 chair: (0 + 0.3) / 2
+    (None, 0, 0.05),       # no cap: the capped weight 5, (5 * 0 + 0.3) / 6
+    (1.0, 1, 0.05),        # already detected in session 1: the weight 5 as before
+])
+def test_a_stale_box_weighs_at_most_the_cap_against_its_next_detection(cap, last_session, expected_y):
+    """A Defined chair box at y 0 (20 detections: weight 5) and a Defined detection at y 0.3."""
+    cfg = defaults()
+    cfg["integration"]["stale_box_weight"] = cap
+    smap = SemanticMap.new(CLASSES)
+    t = smap.objects
+    row = t.append(center=[2.2, 0.0, 0.6], yaw=0.0, size=[0.4, 0.6, 0.8], visible=np.ones(8, bool), defined=True,
+                   scores=chair_vector(), n_det=20, status=ACTIVE, first_session=0, last_session=last_session)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    det = Box(np.array([2.2, 0.3, 0.6]), 0.0, np.array([0.4, 0.6, 0.8]), np.ones(8, bool), True)
+    mapper._integrate(row, det, chair_vector(0.8), 0, "0")
+    assert t.center[row][1] == pytest.approx(expected_y, abs=1e-9)
+    assert t.last_session[row] == 1

@@ -127,3 +127,10 @@ def stale_side(keep_current: bool, drop_current: bool) -> str | None:
     if keep_current == drop_current:
         return None
     return "keep" if keep_current else "drop"
+
+
+def stale_weight(weight: float, stale: bool, cap: float | None) -> float:
+    """The weight of an object's box against a detection: at most ``cap`` when the object was last
+    detected in an earlier session (``stale``; None: no cap). Its first detection of a session
+    then moves a box that says where the object was towards where it is now."""
+    return weight if cap is None or not stale else min(weight, float(cap))

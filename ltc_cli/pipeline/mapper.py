@@ -20,7 +20,7 @@ from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, greedy_merges, half_diagonals, match_reach,
     merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
 )
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects, stale_side
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects, stale_side, stale_weight
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
     v_other_from_detection_rate,
@@ -351,7 +351,8 @@ class Mapper:
         if self._foreign(s_det, t.scores[row], det_box, obj):
             new = obj  # the class evidence fuses; the geometry of a different object does not
         else:
-            new = integrate_box(det_box, obj, 1.0, self._weight(row), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+            w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
+            new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         t.set_box(row, new)
         w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
                          int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
