@@ -18,6 +18,18 @@ from tests.test_accuracy_rules import every_miss_counts
 from tests.test_identity import CHAIR_BOX, CHAIR_FACE, CLASSES, chair_vector
 
 
+def one_empty_frame(smap, cfg, rows, session=1):
+    """A mapper of ``session`` over the map's ``rows`` (indexed), and one frame with nothing detected
+    and nothing in front of the wall 4 m away."""
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=session)
+    for r in rows:
+        mapper.index.insert(r, smap.objects.center[r], smap.objects.size[r])
+    empty, _ = render([], wall_x=4.0)
+    mapper.process_frame(0, "0", [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    return mapper
+
+
 def test_stale_side_by_hand():
     assert stale_side(True, False) == "keep"
     assert stale_side(False, True) == "drop"
@@ -42,12 +54,7 @@ def test_a_merge_with_a_stale_object_takes_the_box_found_now(rule, last_sessions
     rows = [t.append(center=[2.2, y, 0.6], yaw=0.0, size=[0.4, sy, 0.8], visible=np.ones(8, bool), defined=True,
                      scores=chair_vector(), n_det=20, status=ACTIVE, first_session=first, last_session=last)
             for y, sy, first, last in ((0.0, 1.2, 0, last_sessions[0]), (0.7, 1.0, 1, last_sessions[1]))]
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
-    for r in rows:
-        mapper.index.insert(r, t.center[r], t.size[r])
-    empty, _ = render([], wall_x=4.0)
-    mapper.process_frame(0, "0", [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    one_empty_frame(smap, cfg, rows)
     assert (t.status[rows[0]], t.status[rows[1]]) == (ACTIVE, MERGED)
     assert t.center[rows[0]][1] == pytest.approx(expected_y, abs=1e-6)
     assert t.size[rows[0]][1] == pytest.approx(expected_sy, abs=1e-6)
@@ -141,12 +148,7 @@ def test_a_cup_inside_a_table_box_counts_for_the_absence_rule_only(mode, clear_f
     rows = [t.append(center=b.center[i], yaw=0.0, size=b.size[i], visible=np.ones(8, bool), defined=True,
                      scores=s, n_det=20, status=ACTIVE, first_session=0, last_session=0)
             for i, s in ((0, chair_vector()), (1, table))]
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
-    for r in rows:
-        mapper.index.insert(r, t.center[r], t.size[r])
-    empty, _ = render([], wall_x=4.0)
-    mapper.process_frame(0, "0", [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    one_empty_frame(smap, cfg, rows)
     cup = rows[0]
     assert t.clear_in_session[cup] == clear_for_absence and t.clear_since_det[cup] == clear_for_absence
     assert t.n_nondet[cup] == nondets and t.n_clear[cup] == nondets
