@@ -77,7 +77,8 @@ CHAIR = (1.0, 1.3, -0.3, 0.3, 0.5, 1.5)    # a box wholly in front of the cup
 def test_a_cup_inside_a_table_box_is_visible_when_boxes_hide_only_what_lies_behind_them(whole_box):
     """Depth: the cup's face at 2 m, a wall at 4 m. Every ray to the cup enters the table's box
     first (x 1.5) but leaves it only at x 2.7, beyond the cup's face: the entry rule (the paper)
-    hides the whole cup, the whole-box rule hides none of it, 50 x 50 = 2500 px (sampled by one ray per 2 x 2 block: within 10 %)."""
+    hides the whole cup, the whole-box rule hides none of it, 50 x 50 = 2500 px (sampled by one ray
+    per 2 x 2 block: within 10 %)."""
     depth, _ = render([CUP], wall_x=4.0)
     vis, proj = pixel_counts(boxes(CUP, TABLE), T_world_camera(), depth, INTR, 2, 0.2, (0.3, 6.0),
                              hidden_by_whole_box=whole_box)

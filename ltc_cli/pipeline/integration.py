@@ -134,3 +134,14 @@ def stale_weight(weight: float, stale: bool, cap: float | None) -> float:
     detected in an earlier session (``stale``; None: no cap). Its first detection of a session
     then moves a box that says where the object was towards where it is now."""
     return weight if cap is None or not stale else min(weight, float(cap))
+
+
+def merged_box(merged: Box, keep: Box, drop: Box, current: str | None, foreign: bool) -> Box:
+    """The box of a merge: ``merged`` (:func:`merge_objects`), or the box of the one detected now
+    when ``current`` names it (:func:`stale_side`); when ``foreign`` (another class, a dissimilar
+    volume) the larger of the two, never the smaller one's."""
+    if current is not None:
+        merged = keep if current == "keep" else drop
+    if foreign:
+        merged = max(keep, drop, key=lambda b: float(np.prod(b.size)))
+    return merged

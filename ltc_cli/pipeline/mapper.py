@@ -17,18 +17,20 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, containing_candidate, containment, footprint_gaps, greedy_merges, half_diagonals, match_reach,
-    merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
+    adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, greedy_merges,
+    half_diagonals, match_reach, merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
 )
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects, stale_side, stale_weight
+from ltc_cli.pipeline.integration import (
+    fuse_scores, integrate_box, label_weight, merge_objects, merged_box, stale_side, stale_weight,
+)
 from ltc_cli.pipeline.maintenance import (
-    absent_in_session, camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
-    v_other_from_detection_rate,
+    absent_detail, absent_in_session, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
+    new_view, non_detection_vectors, other_leads, other_leads_detail, pixel_counts, required_pixels, seen_empty,
+    unconfirmed, unconfirmed_detail, v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy
 from ltc_cli.settings import Settings
-from ltc_cli.text import plural
 from ltc_cli.types import Intrinsics
 
 
@@ -299,27 +301,24 @@ class Mapper:
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
-            old = np.flatnonzero(absent_in_session(t.status == ACTIVE, t.first_session, t.last_session,
-                                                   t.clear_session, t.clear_in_session, self.session, absent,
-                                                   t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"]))
+            old = np.flatnonzero(absent_in_session(
+                t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
+                absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"]))
             for row in old:
-                self._touch(int(row))
-                self._set_status(int(row), REMOVED)
-                self._log(frame_index, frame_key, "removed", row + 1,
-                          detail=(f"other: clearly visible in {int(t.clear_in_session[row])} frames of this session "
-                                  f"({int(t.clear_since_det[row])} since its last detection), detected in none"))
+                self._remove(row, frame_index, frame_key, absent_detail(t.clear_in_session[row], t.clear_since_det[row]))
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
-            self._touch(int(row))
-            self._set_status(int(row), REMOVED)
-            self._log(frame_index, frame_key, "removed", row + 1,
-                      detail=(f"unconfirmed: {plural(int(t.n_det[row]), 'detection')} in {int(t.n_clear[row])} clear "
-                              f"views in the session that created it (needs {min_detections}"
-                              + (f" and {min_share:.0%} of its clear views)" if min_share else ")")))
+            self._remove(row, frame_index, frame_key,
+                         unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share))
         self._settle()
         return len(rows) + gone
 
     # -- applying decisions ------------------------------------------------------------------
+    def _remove(self, row, frame_index, frame_key, detail) -> None:
+        self._touch(int(row))
+        self._set_status(int(row), REMOVED)
+        self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
+
     def _set_status(self, row: int, status: int) -> None:
         self.map.objects.cols["status"][row] = status
         self.index.remove(row)
@@ -364,10 +363,8 @@ class Mapper:
 
     def _foreign(self, s_a, s_b, box_a: Box, box_b: Box) -> bool:
         """True when box a must not reshape box b: another top class and a dissimilar volume."""
-        if int(top_class(s_a)) == int(top_class(s_b)):
-            return False
-        ratio = self.cfg["association"]["other_class_volume_ratio"]
-        return not bool(similar_volume(np.prod(box_a.size), np.prod(box_b.size), ratio))
+        return foreign_geometry(int(top_class(s_a)), int(top_class(s_b)), box_a.size, box_b.size,
+                                self.cfg["association"]["other_class_volume_ratio"])
 
     def _non_detection(self, row, vectors, frame_index, frame_key) -> bool:
         """Fuse a non-detection into ``row`` (eqs. 3-4, ``vectors`` (C, C+1) by class); remove it
@@ -380,11 +377,7 @@ class Mapper:
         self._log(frame_index, frame_key, "non-detection", row + 1)
         if not bool(np.asarray(self._removals(s[None]))[0]):
             return False
-        self._set_status(row, REMOVED)
-        top = int(top_class(s))
-        detail = (f"other {s[-1]:.3f} > {self.map.classes[top]} {s[top]:.3f} after "
-                  f"{plural(int(t.n_nondet[row]), 'non-detection')} and {plural(int(t.n_det[row]), 'detection')}")
-        self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
+        self._remove(row, frame_index, frame_key, other_leads_detail(s, self.map.classes, t.n_nondet[row], t.n_det[row]))
         return True
 
     def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
@@ -415,10 +408,7 @@ class Mapper:
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         side = stale_side(t.last_session[keep] == self.session, t.last_session[drop] == self.session) \
             if self.cfg["association"]["merge_current_box"] else None
-        if side is not None:
-            box = b_keep if side == "keep" else b_drop  # the box of the one detected now
-        if self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep):
-            box = max(b_keep, b_drop, key=lambda b: float(np.prod(b.size)))  # never the smaller one's
+        box = merged_box(box, b_keep, b_drop, side, self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep))
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet", "n_clear"):
