@@ -79,7 +79,6 @@ class MaintenanceSettings(TypedDict):
     absent_after_views: Optional[int]
     absent_quiet_sessions: Optional[int]
     absent_quiet_views: Optional[int]
-    absent_miss_chance: Optional[float]
     spare_frames: Optional[int]
     hidden_by_whole_box: Union[bool, str]
     ray_step: int

@@ -11,7 +11,7 @@ from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
 from ltc_cli.geometry.boxes import Box
 from ltc_cli.pipeline.integration import stale_side, stale_weight
-from ltc_cli.pipeline.maintenance import absent_in_session, absent_views_by_rate, pixel_counts
+from ltc_cli.pipeline.maintenance import absent_in_session, pixel_counts
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
 from tests.test_accuracy_rules import every_miss_counts
@@ -200,35 +200,3 @@ def test_a_stale_box_weighs_at_most_the_cap_against_its_next_detection(cap, last
     mapper._integrate(row, det, chair_vector(0.8), 0, "0")
     assert t.center[row][1] == pytest.approx(expected_y, abs=1e-9)
     assert t.last_session[row] == 1
-
-
-def test_absent_views_by_rate_by_hand():
-    # rate 0.25: log 0.05 / log 0.75 = 10.4 -> 11; 0.6: 3.3 -> 4, at least 5; 0.9: 1.3 -> 2 -> 5.
-    assert absent_views_by_rate(np.array([0.25, 0.6, 0.9]), 5, 0.05).tolist() == [11, 5, 5]
-    assert absent_views_by_rate(np.array([0.25, 0.6, 0.9]), 5, None).tolist() == [5, 5, 5]
-    assert absent_views_by_rate(np.array([0.01]), 5, 0.05).tolist() == [50]  # log 0.05 / log 0.99 = 298: capped
-
-
-@pytest.mark.parametrize("chance, expected", [(0.05, ACTIVE), (None, REMOVED)])
-def test_a_class_the_detector_rarely_finds_needs_more_clear_views_to_be_absent(chance, expected):
-    """The map learnt that chairs are detected in 20 of 100 clear views: rate (20 + 20 * 0.5) /
-    (100 + 20) = 0.25, so 11 clear views without a detection (above). A chair of session 0 seen
-    clearly in 5 frames of session 1 and detected in none goes with 5 views for every class, stays
-    with absent_miss_chance 0.05."""
-    cfg = defaults()
-    cfg["maintenance"]["absent_after_views"] = 5
-    cfg["maintenance"]["absent_miss_chance"] = chance
-    cfg["maintenance"]["seen_empty_share"] = None
-    smap = SemanticMap.new(CLASSES)
-    t = smap.objects
-    row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
-                   scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
-    mapper.rate_views[0], mapper.rate_hits[0] = 100, 20
-    empty, _ = render([], wall_x=4.0)
-    for k in range(5):
-        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
-    mapper.rate_views[0], mapper.rate_hits[0] = 100, 20  # as learnt elsewhere in the map
-    mapper.prune_unconfirmed(2, -1, "end", None)
-    assert t.clear_in_session[row] == 5 and t.status[row] == expected

@@ -358,16 +358,3 @@ def other_leads_detail(scores: np.ndarray, classes: list[str], n_nondet: int, n_
     top = int(np.asarray(scores)[:-1].argmax())
     return (f"other {scores[-1]:.3f} > {classes[top]} {scores[top]:.3f} after "
             f"{plural(int(n_nondet), 'non-detection')} and {plural(int(n_det), 'detection')}")
-
-
-def absent_views_by_rate(rate: np.ndarray, views: int, miss_chance: float | None, most: int = 50) -> np.ndarray:
-    """Clear views without a detection (C,) after which an object of each class counts as absent:
-    at least ``views``, and as many as it takes for a detector that finds a clearly visible object
-    of the class with probability ``rate`` to miss one that is there in all of them with at most
-    ``miss_chance`` (log chance / log (1 - rate), views taken as independent; None: ``views``
-    for every class). A sink the detector finds one time in four needs 11 views, not 5."""
-    rate = np.asarray(rate, dtype=np.float64)
-    if miss_chance is None:
-        return np.full(rate.shape, int(views))
-    need = np.ceil(np.log(miss_chance) / np.log(np.clip(1.0 - rate, 1e-9, 1 - 1e-9)))
-    return np.clip(need, views, most).astype(np.int64)

@@ -24,7 +24,7 @@ from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, merge_objects, merged_box, stale_side, stale_weight,
 )
 from ltc_cli.pipeline.maintenance import (
-    absent_detail, absent_in_session, absent_views_by_rate, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
+    absent_detail, absent_in_session, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
     new_view, non_detection_vectors, other_leads, other_leads_detail, pixel_counts, required_pixels, seen_empty,
     unconfirmed, unconfirmed_detail, v_other_from_detection_rate,
 )
@@ -301,11 +301,9 @@ class Mapper:
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
-            rate = learnt_detection_rate(self.rate_views, self.rate_hits, m_cfg["rate_prior"], m_cfg["rate_prior_views"])
-            views = absent_views_by_rate(rate, absent, m_cfg["absent_miss_chance"])[top_class(t.scores)]
             old = np.flatnonzero(absent_in_session(
                 t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
-                views, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"]))
+                absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"]))
             for row in old:
                 self._remove(row, frame_index, frame_key, absent_detail(t.clear_in_session[row], t.clear_since_det[row]))
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
