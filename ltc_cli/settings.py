@@ -8,7 +8,7 @@ What each setting means, and why its default, is written next to it in defaults.
 
 from __future__ import annotations
 
-from typing import Optional, TypedDict
+from typing import Union, Optional, TypedDict
 
 
 class ModelingSettings(TypedDict):
@@ -45,6 +45,7 @@ class AssociationSettings(TypedDict):
     partial_adjoin_gap: Optional[float]
     merge_other_class_iou: Optional[float]
     merge_containment: Optional[float]
+    merge_current_box: bool
     merge: bool
 
 
@@ -53,6 +54,7 @@ class IntegrationSettings(TypedDict):
     max_weight: Optional[float]
     unassigned_score: str
     relabel_weight: str
+    stale_box_weight: Optional[float]
 
 
 class MaintenanceSettings(TypedDict):
@@ -75,7 +77,10 @@ class MaintenanceSettings(TypedDict):
     min_detections: int
     min_detection_share: Optional[float]
     absent_after_views: Optional[int]
+    absent_quiet_sessions: Optional[int]
+    absent_quiet_views: Optional[int]
     spare_frames: Optional[int]
+    hidden_by_whole_box: Union[bool, str]
     ray_step: int
     depth_tolerance: float
 

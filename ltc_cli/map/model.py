@@ -21,7 +21,7 @@ def top_class(scores: np.ndarray) -> np.ndarray:
 ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 # Columns added after format 1: a map written before them reads them as zeros.
-ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session"})
+ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session", "clear_since_det"})
 
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
@@ -47,6 +47,9 @@ COLUMNS = {
     # is gone (maintenance.absent_after_views).
     "clear_session": ((), np.int64),
     "clear_in_session": ((), np.int64),
+    # Clear views without a detection since the object's last detection, over sessions
+    # (maintenance.absent_quiet_sessions).
+    "clear_since_det": ((), np.int64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),
     "first_frame": ((), np.int64),

@@ -151,6 +151,14 @@ def similar_volume(vol_a: np.ndarray, vol_b: np.ndarray, min_ratio: float | None
         return np.where(hi > 0, lo / hi, 1.0) >= min_ratio
 
 
+def foreign_geometry(top_a: int, top_b: int, size_a: np.ndarray, size_b: np.ndarray, ratio: float | None) -> bool:
+    """True when box a (size (3,)) must not reshape box b: another top class and a volume not
+    within ``ratio`` (:func:`similar_volume`)."""
+    if int(top_a) == int(top_b):
+        return False
+    return not bool(similar_volume(np.prod(size_a), np.prod(size_b), ratio))
+
+
 def containing_candidate(inside: np.ndarray, same_class: np.ndarray, need_same: float,
                          need_other: float | None, comparable: np.ndarray | None = None) -> int:
     """Index of the candidate that contains most of a detection, or -1.

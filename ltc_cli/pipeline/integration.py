@@ -112,3 +112,36 @@ def merge_objects(keep: Box, drop: Box, s_keep: np.ndarray, s_drop: np.ndarray, 
     box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent)
     s = w_keep * s_keep + w_drop * s_drop
     return box, s / s.sum()
+
+
+def stale_side(keep_current: bool, drop_current: bool) -> str | None:
+    """Which box a merge of two map objects takes whole: ``"keep"`` or ``"drop"`` when only that one
+    was detected in this session, None when both or neither were (then :func:`merge_objects`).
+
+    An object last detected in an earlier session has a box that says where it *was*. When a
+    detection of this session builds a second object that overlaps it enough to merge (a chair
+    moved 0.3 m), the observation-weighted mean gives the old box five times the weight of the new
+    one: the merged box stays on the old place (a ghost) and the chair where it is now is missed.
+    The new evidence wins the box; the id of the older object stays (a moved object keeps its id).
+    """
+    if keep_current == drop_current:
+        return None
+    return "keep" if keep_current else "drop"
+
+
+def stale_weight(weight: float, stale: bool, cap: float | None) -> float:
+    """The weight of an object's box against a detection: at most ``cap`` when the object was last
+    detected in an earlier session (``stale``; None: no cap). Its first detection of a session
+    then moves a box that says where the object was towards where it is now."""
+    return weight if cap is None or not stale else min(weight, float(cap))
+
+
+def merged_box(merged: Box, keep: Box, drop: Box, current: str | None, foreign: bool) -> Box:
+    """The box of a merge: ``merged`` (:func:`merge_objects`), or the box of the one detected now
+    when ``current`` names it (:func:`stale_side`); when ``foreign`` (another class, a dissimilar
+    volume) the larger of the two, never the smaller one's."""
+    if current is not None:
+        merged = keep if current == "keep" else drop
+    if foreign:
+        merged = max(keep, drop, key=lambda b: float(np.prod(b.size)))
+    return merged

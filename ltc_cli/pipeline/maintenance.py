@@ -10,6 +10,7 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.camera import invert_pose, project, transform
 from ltc_cli.types import Intrinsics
+from ltc_cli.text import plural
 
 
 def in_view(boxes: Boxes, T_camera_map: np.ndarray, intr: Intrinsics, max_depth: float) -> np.ndarray:
@@ -127,6 +128,8 @@ def pixel_counts(
     depth_tolerance: float,
     depth_range: tuple[float, float],
     with_empty: bool = False,
+    hidden_by_whole_box: bool = False,
+    with_whole_box: bool = False,
 ):
     """Pixels of each box that the camera should see: (visible (M,), projected (M,)), and with
     ``with_empty`` also empty (M,): those of the visible pixels whose observed depth lies beyond
@@ -138,6 +141,13 @@ def pixel_counts(
     by other map objects) and where the observed depth has a reading that is not nearer than the box
     surface by more than ``depth_tolerance`` (not hidden by something that is not in the map, such as
     a person). Counted at one ray per step x step block and scaled back to pixels.
+
+    ``hidden_by_whole_box``: another box hides a ray only when the ray leaves that box before it
+    enters this one (the other box lies wholly in front along the ray), not merely enters it first.
+    ``with_whole_box``: also return (last) the visible pixels by the whole-box rule.
+    A cup on a table lies inside the table's box: every ray to the cup enters the table's box first,
+    so by the entry test alone the cup is never visible and never missed, and a cup taken away stays
+    in the map for ever. A chair in front of a cabinet still hides it (its box ends before).
     """
     m = len(boxes)
     if m == 0:
@@ -151,20 +161,28 @@ def pixel_counts(
     entry, exit_ = _slab_entries(c[box], s[box], [o_box[box, a] for a in range(3)], [half[box, a] for a in range(3)],
                                  [d[:, a] for a in range(3)], with_exit=True)  # (Q,)
     in_range = np.isfinite(entry) & (entry >= depth_range[0]) & (entry <= depth_range[1])
-    nearest = np.full(len(u), np.inf)
-    np.minimum.at(nearest, ray, entry)
-    first = entry <= nearest[ray]
     obs = depth_m[v.astype(int), u.astype(int)][ray]
-    seen = in_range & first & (obs > 0) & (obs >= entry - depth_tolerance)
+    depth_ok = in_range & (obs > 0) & (obs >= entry - depth_tolerance)
+
+    def unhidden(whole_box):
+        # Entry: the first box a ray enters hides the others; whole box: a box hides what lies
+        # beyond its exit (a box's own exit is never before its entry: it never hides itself).
+        nearest = np.full(len(u), np.inf)
+        np.minimum.at(nearest, ray, np.where(np.isfinite(entry), exit_, np.inf) if whole_box else entry)
+        return entry <= nearest[ray]
+
+    seen = depth_ok & unhidden(hidden_by_whole_box)
     scale = float(step * step)
 
     def per_box(flags):
         return np.bincount(box[flags], minlength=m) * scale
 
+    out = [per_box(seen), per_box(in_range)]
     if with_empty:
-        empty = seen & (obs > exit_ + depth_tolerance)
-        return per_box(seen), per_box(in_range), per_box(empty)
-    return per_box(seen), per_box(in_range)
+        out.append(per_box(seen & (obs > exit_ + depth_tolerance)))
+    if with_whole_box:
+        out.append(out[0] if hidden_by_whole_box else per_box(depth_ok & unhidden(True)))
+    return tuple(out)
 
 
 def visible_pixels(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range) -> np.ndarray:
@@ -298,3 +316,45 @@ def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None
     if share is None:
         return np.zeros(np.shape(visible_px), dtype=bool)
     return (np.asarray(visible_px) > 0) & (np.asarray(empty_px) >= share * np.asarray(visible_px))
+
+
+def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_session: np.ndarray,
+                      clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views: int,
+                      clear_since_det: np.ndarray | None = None, quiet_sessions: int | None = None,
+                      quiet_views: int | None = None) -> np.ndarray:
+    """(M,) bool: active objects of earlier sessions seen clearly in at least ``views`` frames of
+    this session and detected in none: a whole visit's worth of views, not one unlucky frame
+    (``clear_session`` holds the session of the clear views + 1, 0 for none yet).
+
+    With ``quiet_sessions`` (and ``clear_since_det``: clear views without a detection since the
+    last detection, over sessions), also those not detected in the last ``quiet_sessions``
+    sessions (this one included) whose clear views since their last detection reach ``quiet_views``
+    (None: ``views``): a
+    chair taken away whose old place each lap sees clearly only two or three times (the room's far
+    corner) is as gone after two laps as one seen five times in one.
+    """
+    quiet = np.asarray(active) & (np.asarray(first_session) < session) & (np.asarray(last_session) < session)
+    gone = (np.asarray(clear_session) == session + 1) & (np.asarray(clear_in_session) >= views)
+    if quiet_sessions is not None and clear_since_det is not None:
+        gone |= ((np.asarray(last_session) <= session - quiet_sessions)
+                 & (np.asarray(clear_since_det) >= (views if quiet_views is None else quiet_views)))
+    return quiet & gone
+
+
+def absent_detail(in_session: int, since_detection: int) -> str:
+    """The event log's reason for a removal by the absence rule (starts "other: clearly")."""
+    return (f"other: clearly visible in {int(in_session)} frames of this session ({int(since_detection)} since its "
+            "last detection), detected in none")
+
+
+def unconfirmed_detail(n_det: int, n_clear: int, min_detections: int, min_share: float | None) -> str:
+    """The event log's reason for a removal as unconfirmed (starts "unconfirmed:")."""
+    return (f"unconfirmed: {plural(int(n_det), 'detection')} in {int(n_clear)} clear views in the session that "
+            f"created it (needs {min_detections}" + (f" and {min_share:.0%} of its clear views)" if min_share else ")"))
+
+
+def other_leads_detail(scores: np.ndarray, classes: list[str], n_nondet: int, n_det: int) -> str:
+    """The event log's reason for a removal by eq. 4 (starts "other")."""
+    top = int(np.asarray(scores)[:-1].argmax())
+    return (f"other {scores[-1]:.3f} > {classes[top]} {scores[top]:.3f} after "
+            f"{plural(int(n_nondet), 'non-detection')} and {plural(int(n_det), 'detection')}")

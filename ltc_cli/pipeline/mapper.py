@@ -17,18 +17,20 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, containing_candidate, containment, footprint_gaps, greedy_merges, half_diagonals, match_reach,
-    merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
+    adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, greedy_merges,
+    half_diagonals, match_reach, merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
 )
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, merge_objects
+from ltc_cli.pipeline.integration import (
+    fuse_scores, integrate_box, label_weight, merge_objects, merged_box, stale_side, stale_weight,
+)
 from ltc_cli.pipeline.maintenance import (
-    camera_view, class_hit_counts, found_again, in_view, new_view, seen_empty, unconfirmed, learnt_detection_rate, non_detection_vectors, other_leads, pixel_counts, required_pixels,
-    v_other_from_detection_rate,
+    absent_detail, absent_in_session, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
+    new_view, non_detection_vectors, other_leads, other_leads_detail, pixel_counts, required_pixels, seen_empty,
+    unconfirmed, unconfirmed_detail, v_other_from_detection_rate,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy
 from ltc_cli.settings import Settings
-from ltc_cli.text import plural
 from ltc_cli.types import Intrinsics
 
 
@@ -197,17 +199,19 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index)
+            missed, clear, empty, clear_absent = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range,
+                                                              frame_index)
             vectors = self.non_detection_vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
             for row in rows[clear]:
                 self._touch(int(row))
                 cols["n_clear"][row] += 1
-                # clear_session holds session + 1 (0: no clear view yet, as maps before the column).
-                if cols["clear_session"][row] != self.session + 1:
-                    cols["clear_session"][row], cols["clear_in_session"][row] = self.session + 1, 0
-                cols["clear_in_session"][row] += 1
+            # The absence rule's counts; clear_session holds session + 1 (0: none yet, old maps).
+            fresh = rows[clear_absent & (cols["clear_session"][rows] != self.session + 1)]
+            cols["clear_session"][fresh], cols["clear_in_session"][fresh] = self.session + 1, 0
+            cols["clear_in_session"][rows[clear_absent]] += 1
+            cols["clear_since_det"][rows[clear_absent & ~matched]] += 1
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
                 res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
@@ -252,13 +256,15 @@ class Mapper:
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
-        """(missed (M,), clear (M,), empty (M,)) bool over in-view rows: which get a non-detection,
-        as the maintenance policy decides; which were clearly visible (enough pixels to say so); and
-        which of the missed ones the depth showed to be free space."""
+        """(missed, clear, empty, clear for the absence rule), each (M,) bool over in-view rows: which
+        get a non-detection, as the maintenance policy decides; which were clearly visible (enough
+        pixels to say so); which of the missed ones the depth showed to be free space; and which
+        were clearly visible by ``hidden_by_whole_box`` ("absence": by the whole-box rule)."""
         m_cfg = self.cfg["maintenance"]
-        vis_px, proj_px, empty_px = pixel_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
-                                                 m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
-                                                 with_empty=True)
+        whole = m_cfg["hidden_by_whole_box"]  # True: for every count; "absence": the absence rule's only
+        vis_px, proj_px, empty_px, *vis_absent = pixel_counts(
+            self.map.objects.boxes(rows), T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"],
+            depth_range, with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence")
         scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
@@ -274,7 +280,7 @@ class Mapper:
             t, view = self.map.objects, camera_view(T_map_camera)
             missed &= empty | new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
             t.cols["nondet_view"][rows[missed]] = view
-        return missed, vis_px >= need, empty
+        return missed, vis_px >= need, empty, (vis_absent or [vis_px])[0] >= need
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
                           min_share: float | None = None) -> int:
@@ -290,33 +296,29 @@ class Mapper:
         t = self.map.objects
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
         rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share)]
-        absent = self.cfg["maintenance"]["absent_after_views"]
+        m_cfg = self.cfg["maintenance"]
+        absent = m_cfg["absent_after_views"]
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
-            # Objects of earlier sessions seen clearly in at least ``absent`` frames of this one and
-            # detected in none: a whole visit's worth of views, not one unlucky frame.
-            old = np.flatnonzero((t.status == ACTIVE) & (t.first_session < self.session)
-                                 & (t.last_session < self.session) & (t.clear_session == self.session + 1)
-                                 & (t.clear_in_session >= absent))
+            old = np.flatnonzero(absent_in_session(
+                t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
+                absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"]))
             for row in old:
-                self._touch(int(row))
-                self._set_status(int(row), REMOVED)
-                self._log(frame_index, frame_key, "removed", row + 1,
-                          detail=(f"other: clearly visible in {int(t.clear_in_session[row])} frames of this session, "
-                                  "detected in none"))
+                self._remove(row, frame_index, frame_key, absent_detail(t.clear_in_session[row], t.clear_since_det[row]))
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
-            self._touch(int(row))
-            self._set_status(int(row), REMOVED)
-            self._log(frame_index, frame_key, "removed", row + 1,
-                      detail=(f"unconfirmed: {plural(int(t.n_det[row]), 'detection')} in {int(t.n_clear[row])} clear "
-                              f"views in the session that created it (needs {min_detections}"
-                              + (f" and {min_share:.0%} of its clear views)" if min_share else ")")))
+            self._remove(row, frame_index, frame_key,
+                         unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share))
         self._settle()
         return len(rows) + gone
 
     # -- applying decisions ------------------------------------------------------------------
+    def _remove(self, row, frame_index, frame_key, detail) -> None:
+        self._touch(int(row))
+        self._set_status(int(row), REMOVED)
+        self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
+
     def _set_status(self, row: int, status: int) -> None:
         self.map.objects.cols["status"][row] = status
         self.index.remove(row)
@@ -325,6 +327,7 @@ class Mapper:
         cols = self.map.objects.cols
         cols["last_session"][row] = self.session
         cols["last_frame"][row] = frame_index
+        cols["clear_since_det"][row] = 0
 
     def _create(self, box: Box, s_det, frame_index, frame_key) -> int:
         t = self.map.objects
@@ -347,7 +350,8 @@ class Mapper:
         if self._foreign(s_det, t.scores[row], det_box, obj):
             new = obj  # the class evidence fuses; the geometry of a different object does not
         else:
-            new = integrate_box(det_box, obj, 1.0, self._weight(row), i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+            w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
+            new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         t.set_box(row, new)
         w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
                          int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
@@ -359,10 +363,8 @@ class Mapper:
 
     def _foreign(self, s_a, s_b, box_a: Box, box_b: Box) -> bool:
         """True when box a must not reshape box b: another top class and a dissimilar volume."""
-        if int(top_class(s_a)) == int(top_class(s_b)):
-            return False
-        ratio = self.cfg["association"]["other_class_volume_ratio"]
-        return not bool(similar_volume(np.prod(box_a.size), np.prod(box_b.size), ratio))
+        return foreign_geometry(int(top_class(s_a)), int(top_class(s_b)), box_a.size, box_b.size,
+                                self.cfg["association"]["other_class_volume_ratio"])
 
     def _non_detection(self, row, vectors, frame_index, frame_key) -> bool:
         """Fuse a non-detection into ``row`` (eqs. 3-4, ``vectors`` (C, C+1) by class); remove it
@@ -375,11 +377,7 @@ class Mapper:
         self._log(frame_index, frame_key, "non-detection", row + 1)
         if not bool(np.asarray(self._removals(s[None]))[0]):
             return False
-        self._set_status(row, REMOVED)
-        top = int(top_class(s))
-        detail = (f"other {s[-1]:.3f} > {self.map.classes[top]} {s[top]:.3f} after "
-                  f"{plural(int(t.n_nondet[row]), 'non-detection')} and {plural(int(t.n_det[row]), 'detection')}")
-        self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
+        self._remove(row, frame_index, frame_key, other_leads_detail(s, self.map.classes, t.n_nondet[row], t.n_det[row]))
         return True
 
     def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
@@ -408,8 +406,9 @@ class Mapper:
                           for r in (keep, drop))
         box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], w_keep, w_drop,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
-        if self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep):
-            box = max(b_keep, b_drop, key=lambda b: float(np.prod(b.size)))  # never the smaller one's
+        side = stale_side(t.last_session[keep] == self.session, t.last_session[drop] == self.session) \
+            if self.cfg["association"]["merge_current_box"] else None
+        box = merged_box(box, b_keep, b_drop, side, self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep))
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet", "n_clear"):
