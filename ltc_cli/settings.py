@@ -44,6 +44,7 @@ class AssociationSettings(TypedDict):
     other_class_volume_ratio: Optional[float]
     partial_adjoin_gap: Optional[float]
     merge_other_class_iou: Optional[float]
+    merge_partial_defined_gap: Optional[float]
     merge_containment: Optional[float]
     merge_current_box: bool
     merge: bool

@@ -304,17 +304,47 @@ def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_vo
     return sorted((1.0 - float(iou[i, j]), int(i), int(j)) for i, j in zip(a, b))
 
 
+def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, max_gap: float | None
+                          ) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view, top classes (M,), Defined flags (M,) bool) in which a
+    partial object touches a Defined object of its class: footprints within ``max_gap`` metres
+    (:func:`footprint_gaps`, z ranges overlapping). [(gap, a, b)], a < b, nearest first; none when
+    ``max_gap`` is None.
+
+    A partial view of an object already complete in the map (a chair cut by the image border on a
+    later visit) makes a box that is neither close by eq. 2 nor much inside the complete one: it
+    often sticks out of it, grown along the unseen axis. It touches it, though, and a partial box
+    never reshapes a Defined one (DESIGN.md 1.3), so joining them costs the complete box nothing.
+    Two partial objects that adjoin are left to ``partial_adjoin_gap``; two Defined ones to eq. 2.
+    """
+    m = len(boxes)
+    if max_gap is None or m < 2:
+        return []
+    out = []
+    for a in np.flatnonzero(~defined):
+        rest = np.flatnonzero(defined & (top == top[a]))
+        if rest.size == 0:
+            continue
+        gaps = footprint_gaps(boxes.take(slice(int(a), int(a) + 1)), boxes.take(rest))
+        out.extend((float(g), min(int(a), int(b)), max(int(a), int(b))) for g, b in zip(gaps, rest) if g <= max_gap)
+    return sorted(out)
+
+
 def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict,
-                reach: float | None = None) -> list[tuple[float, int, int]]:
+                reach: float | None = None, defined: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
     association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
     inside the other by ``merge_containment``, default ``containment``), then one object under two
-    labels (:func:`relabel_pairs`, keys past any distance). The overlap rules all stand down with
-    ``containment`` off (the paper: vertex distance only). ``reach``: as for duplicate_pairs."""
+    labels (:func:`relabel_pairs`, keys past any distance), then a partial object touching a
+    Defined one of its class (:func:`partial_defined_pairs`, with ``defined`` (M,) bool given).
+    The overlap rules all stand down with ``containment`` off (the paper: vertex distance only).
+    ``reach``: as for duplicate_pairs."""
     overlap = a_cfg["containment"] is not None
     pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                             overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach)
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
-    return pairs + [(1e6 + k, a, b) for k, a, b in two_labels]
+    touching = partial_defined_pairs(boxes, top, defined, a_cfg["merge_partial_defined_gap"]) \
+        if overlap and defined is not None else []
+    return pairs + [(1e6 + k, a, b) for k, a, b in two_labels] + [(2e6 + g, a, b) for g, a, b in touching]
