@@ -45,6 +45,7 @@ class AssociationSettings(TypedDict):
     partial_adjoin_gap: Optional[float]
     merge_other_class_iou: Optional[float]
     merge_partial_defined_gap: Optional[float]
+    merge_partial_defined_volume: float
     merge_containment: Optional[float]
     merge_current_box: bool
     merge: bool

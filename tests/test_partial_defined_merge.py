@@ -1,5 +1,5 @@
-"""A partial map object touching a Defined one of its class merges into it (association
-merge_partial_defined_gap, issue 9: a revisit of tum-fr1-rpy made a 1.4 m partial chair beside a chair)."""
+"""A later partial view of a Defined object merges into it (association merge_partial_defined_gap /
+_volume, issue 9: a revisit of tum-fr1-rpy made a 1.4 m partial chair beside a 0.5 m chair)."""
 
 import numpy as np
 import pytest
@@ -21,12 +21,15 @@ CHAIR, TABLE = 0, 3
 # 5 Defined chair   x -0.25..0.25  y -0.75..-0.25 z 0..0.9   touches 0 (two Defined: eq. 2's business);
 #                   0.05 from 1 in y
 # 6 partial chair   x -0.25..0.25  y  0.30..0.70  z 0..0.9   0.05 from 0 in y
+# Volumes: 0 and 5 0.225; 1 and 2 0.504 (2.24 x 0.225); 3 0.432; 4 0.16; 6 0.18 (0.8 x 0.225).
+# Objects 0 and 5 were first detected in session 0, the others in session 1, except 6 (session 0).
 CENTER = [[0, 0, 0.45], [0.9, 0, 0.45], [3.0, 0, 0.45], [-0.85, 0, 0.45], [0, 0.6, 1.5], [0, -0.5, 0.45],
           [0, 0.5, 0.45]]
 SIZE = [[0.5, 0.5, 0.9], [1.4, 0.4, 0.9], [1.4, 0.4, 0.9], [1.2, 0.4, 0.9], [0.5, 0.8, 0.4], [0.5, 0.5, 0.9],
         [0.5, 0.4, 0.9]]
 TOP = np.array([CHAIR, CHAIR, CHAIR, TABLE, CHAIR, CHAIR, CHAIR])
 DEFINED = np.array([True, False, False, False, False, True, False])
+FIRST = np.array([0, 1, 1, 1, 1, 0, 0])
 
 
 def scene() -> Boxes:
@@ -35,13 +38,24 @@ def scene() -> Boxes:
 
 def test_partial_defined_pairs_by_hand():
     boxes = scene()
-    pairs = partial_defined_pairs(boxes, TOP, DEFINED, 0.0)
+    pairs = partial_defined_pairs(boxes, TOP, DEFINED, FIRST, 0.0, 2.0)
     assert [(a, b) for _, a, b in pairs] == [(0, 1)]
     assert pairs[0][0] == pytest.approx(0.0)
-    wider = partial_defined_pairs(boxes, TOP, DEFINED, 0.1)
-    assert sorted((a, b) for _, a, b in wider) == [(0, 1), (0, 6), (1, 5)]
-    assert sorted(g for g, _, _ in wider) == pytest.approx([0.0, 0.05, 0.05])
-    assert partial_defined_pairs(boxes, TOP, DEFINED, None) == []
+    assert partial_defined_pairs(boxes, TOP, DEFINED, FIRST, None, 2.0) == []
+    # A gap of 0.1 m adds 1 with 5 (0.05 m); 6 is as old as 0 and smaller, so never.
+    wider = partial_defined_pairs(boxes, TOP, DEFINED, FIRST, 0.1, 2.0)
+    assert sorted((a, b) for _, a, b in wider) == [(0, 1), (1, 5)]
+    assert sorted(g for g, _, _ in wider) == pytest.approx([0.0, 0.05])
+    # 6 from a later session: still under twice 0's volume (0.8); with no volume test it pairs.
+    later = np.array([0, 1, 1, 1, 1, 0, 1])
+    assert sorted((a, b) for _, a, b in partial_defined_pairs(boxes, TOP, DEFINED, later, 0.1, 2.0)) == [(0, 1), (1, 5)]
+    assert sorted((a, b) for _, a, b in partial_defined_pairs(boxes, TOP, DEFINED, later, 0.1, 0.0)) == \
+        [(0, 1), (0, 6), (1, 5)]
+    # 1 first seen in the session of 0 and 5: no pair at any gap.
+    same = np.array([0, 0, 1, 1, 1, 0, 0])
+    assert partial_defined_pairs(boxes, TOP, DEFINED, same, 0.1, 2.0) == []
+    # A volume ratio over 1's (2.24): no pair either.
+    assert partial_defined_pairs(boxes, TOP, DEFINED, FIRST, 0.1, 2.3) == []
 
 
 @pytest.mark.parametrize("gap", [None, 0.0])
@@ -49,7 +63,7 @@ def test_merge_pairs_joins_the_partial_chair_only_with_the_setting(gap):
     a_cfg = defaults()["association"]
     a_cfg["merge_partial_defined_gap"] = gap
     metric = plugins.get("metrics", "vertex").factory(a_cfg)
-    pairs = {(a, b) for _, a, b in merge_pairs(scene(), TOP, metric.distance, a_cfg, None, DEFINED)}
+    pairs = {(a, b) for _, a, b in merge_pairs(scene(), TOP, metric.distance, a_cfg, None, DEFINED, FIRST)}
     # Without the rule nothing pairs 0 and 1: eq. 2 sees 0.9 m between centres, containment 0.08.
     assert ((0, 1) in pairs) == (gap is not None)
     assert (0, 5) not in pairs and (0, 3) not in pairs and (0, 4) not in pairs

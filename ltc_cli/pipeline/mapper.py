@@ -388,7 +388,7 @@ class Mapper:
             return 0
         a_cfg = self.cfg["association"]
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
-                            match_reach(self.metric, a_cfg), t.defined[rows])
+                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows])
         merges = greedy_merges(pairs, rows + 1)
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
