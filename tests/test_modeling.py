@@ -5,7 +5,13 @@ from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import align_yaw, box_corners
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.pipeline.clustering import dbscan_labels, largest_clusters
-from ltc_cli.pipeline.modeling import defined_flags, model_detections, thin_mask, vertex_visibility
+from ltc_cli.pipeline.modeling import (
+    defined_flags,
+    model_detections,
+    thin_mask,
+    valid_depth_share,
+    vertex_visibility,
+)
 from tests.scene import INTR, T_world_camera, face_rect, render
 
 
@@ -174,3 +180,36 @@ def test_thinning_is_scipy_minimum_filter_pixel_for_pixel():
         crop = mask[R0:R1, C0:C1]
         want[R0:R1, C0:C1] = ndimage.minimum_filter(crop, size=2 * k + 1, mode="nearest") if k > 0 else crop
         assert (thin_mask(mask, max_it, frac) == want).all(), trial
+
+
+def test_valid_depth_share_by_hand():
+    depth = np.array([[0.0, 1.0, 2.0, 0.0],
+                      [1.0, 0.0, 7.0, 1.5],
+                      [0.2, 1.0, 1.0, 0.0]])
+    crop = np.array([[True, True, True],
+                     [True, False, True]])  # 5 pixels, at rows 1-2, columns 1-3
+    # Its depths: 0 (none), 7 (beyond max), 1.5, 1.0, 0 (none): 1.5 and 1.0 are in (0.3, 6.0).
+    assert valid_depth_share(crop, 1, 1, depth, 0.3, 6.0) == pytest.approx(2 / 5)
+    assert valid_depth_share(np.zeros((2, 2), bool), 0, 0, depth, 0.3, 6.0) == 0.0
+
+
+def test_min_depth_share_drops_a_dark_screen():
+    p = dict(defaults()["modeling"])
+    # A monitor 0.6 (y) x 0.8 (z) 2 m ahead whose dark screen gives depth only on a central
+    # strip a tenth of its width: after thinning about 10-12 % of the mask has depth.
+    depth, _ = render([(2.0, 2.05, -0.3, 0.3, 0.2, 1.0)], wall_x=4.0)
+    u0, u1, v0, v1 = face_rect(-0.3, 0.3, 0.2, 1.0, 2.0)
+    mask = np.zeros(depth.shape, bool)
+    mask[v0:v1, u0:u1] = True
+    strip = (u1 - u0) // 10
+    mid = (u0 + u1) // 2
+    hole = mask.copy()
+    hole[:, mid - strip // 2 : mid - strip // 2 + strip] = False
+    depth[hole] = 0.0
+    # Without the setting the strip's points make a box (the paper's behaviour).
+    p["min_depth_share"] = None
+    assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 1
+    p["min_depth_share"] = 0.05
+    assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 1
+    p["min_depth_share"] = 0.2
+    assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 0

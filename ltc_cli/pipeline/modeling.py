@@ -86,6 +86,21 @@ def mask_pixels(crop: np.ndarray, r0: int, c0: int, depth_m: np.ndarray, max_poi
     return u[ok], v[ok], z[ok], stride
 
 
+def valid_depth_share(crop: np.ndarray, r0: int, c0: int, depth_m: np.ndarray, min_depth: float,
+                      max_depth: float) -> float:
+    """The share (0..1) of a thinned mask's pixels with a depth reading in (min_depth, max_depth).
+
+    crop (h, w) bool is the thinned mask's part starting at image row r0, column c0. A dark or shiny
+    screen gives no depth, and what few points its mask keeps are whatever it bleeds onto; 0 for an
+    empty mask.
+    """
+    n = int(np.count_nonzero(crop))
+    if n == 0:
+        return 0.0
+    z = depth_m[r0 : r0 + crop.shape[0], c0 : c0 + crop.shape[1]][crop]
+    return float(np.count_nonzero((z > min_depth) & (z < max_depth))) / n
+
+
 def depth_edges(depth_m: np.ndarray, u: np.ndarray, v: np.ndarray, z: np.ndarray, jump: float) -> np.ndarray:
     """(N,) True where a pixel's depth differs from a 4-neighbour's by more than ``jump`` * z.
 
@@ -289,6 +304,10 @@ def model_detections(
     for i, mask in enumerate(masks):
         crop, r0, c0, k = thin_crop(mask, p["thin_max_iterations"], p["thin_fraction"])
         if crop is None:
+            continue
+        # Too few depth readings on the mask: the points are not the object's (None: keep all).
+        if p.get("min_depth_share") is not None and \
+                valid_depth_share(crop, r0, c0, depth_m, min_d, max_d) < p["min_depth_share"]:
             continue
         u, v, z, stride = mask_pixels(crop, r0, c0, depth_m, p["max_points"], min_d, max_d, p["edge_jump"])
         if len(z) < p["min_samples"]:
