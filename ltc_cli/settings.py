@@ -28,6 +28,7 @@ class ModelingSettings(TypedDict):
     min_extent: float
     thin_extent: float
     class_depth: dict[str, float]
+    taller_than: dict[str, dict]
     floor_classes: list[str]
     ground_max_gap: float
     border: int
@@ -49,6 +50,7 @@ class AssociationSettings(TypedDict):
     merge_partial_defined_volume: float
     merge_containment: Optional[float]
     merge_current_box: bool
+    merge_id_by_label: bool
     merge: bool
 
 

@@ -226,18 +226,29 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     return sorted(pairs)
 
 
-def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray) -> list[tuple[int, int]]:
+def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray, survivor=None) -> list[tuple[int, int]]:
     """(keep, drop) index pairs from :func:`duplicate_pairs`, closest first, each object at most
-    once dropped; the older object (smaller id) keeps its id."""
+    once dropped. The older object (smaller id) keeps its id, unless ``survivor(older, newer)``
+    (indices) names the newer one (see :func:`label_survivor`)."""
     gone: set = set()
     out = []
     for _, a, b in pairs:
         if a in gone or b in gone:
             continue
-        keep, drop = (a, b) if ids[a] < ids[b] else (b, a)
+        older, newer = (a, b) if ids[a] < ids[b] else (b, a)
+        keep = survivor(older, newer) if survivor is not None else older
+        drop = newer if keep == older else older
         out.append((keep, drop))
         gone.add(drop)
     return out
+
+
+def label_survivor(top_older: int, top_newer: int, top_merged: int, by_label: bool) -> bool:
+    """True when, of two map objects that merge, the newer one keeps its id: the two had different
+    top classes and the merged class vector names the newer one's. The user knows the map by
+    "tv 2"; when a monitor's foot, mapped first as "mouse 1", joins it, "tv 2" is the object that is
+    still there. by_label False: the older id always stays (the paper's de-duplication keeps one)."""
+    return bool(by_label and top_older != top_newer and top_merged == top_newer)
 
 
 def _segment_distances(points_xy: np.ndarray, rings_xy: np.ndarray) -> np.ndarray:

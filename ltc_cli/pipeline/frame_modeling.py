@@ -23,21 +23,29 @@ class ClassFlags:
     """What stage 1 needs to know about each class of the map (arrays (C+1,), ``other`` last).
 
     moving: never a map object (people, animals); grounded: stands on the floor; depth_prior: the
-    typical depth of a one-view slab (NaN: none).
+    typical depth of a one-view slab (NaN: none); max_height: the height a box of the class is
+    never taller than (inf: none), and taller_is: the class such a box is then (-1: none).
     """
 
     moving: np.ndarray
     grounded: np.ndarray
     depth_prior: np.ndarray
+    max_height: np.ndarray | None = None
+    taller_is: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
         moving = set(config["map"].get("moving_classes") or [])
         floor = set(config["modeling"]["floor_classes"] or [])
         priors = config["modeling"]["class_depth"] or {}
+        pos = {c: i for i, c in enumerate(classes)}
+        # A rule naming a class the map does not hold has nothing to act on.
+        tall = {c: r for c, r in (config["modeling"].get("taller_than") or {}).items() if c in pos and r["is"] in pos}
         return cls(np.array([c in moving for c in classes] + [False]),
                    np.array([c in floor for c in classes] + [False]),
-                   np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]))
+                   np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]),
+                   np.array([float(tall[c]["height"]) if c in tall else np.inf for c in classes] + [np.inf]),
+                   np.array([pos[tall[c]["is"]] if c in tall else -1 for c in classes] + [-1]))
 
 
 @dataclass
@@ -87,7 +95,30 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,
                                class_depth=flags.depth_prior[top])
-    return FrameModel(detections, list(scores), modeled)
+    scores = list(scores)
+    if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
+        scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, 2], flags.max_height, flags.taller_is)
+    return FrameModel(detections, scores, modeled)
+
+
+def relabel_too_tall(scores: list[np.ndarray], source: np.ndarray, heights: np.ndarray, max_height: np.ndarray,
+                     taller_is: np.ndarray) -> list[np.ndarray]:
+    """The class vectors (C+1,) of a frame's detections, where a detection whose box is taller than
+    its top class ever stands has that class's score moved to the class it then is.
+
+    source (M,): each box's detection in ``scores``; heights (M,): the boxes' z extents, metres;
+    max_height, taller_is (C+1,): from :class:`ClassFlags`. A box can only be seen shorter than
+    its object (a partial view), never taller, so only the upper bound of a class is used.
+    """
+    out = list(scores)
+    for k, i in enumerate(np.asarray(source, dtype=int)):
+        top = int(top_class(out[i]))
+        if heights[k] > max_height[top] and taller_is[top] >= 0:
+            v = np.array(out[i], dtype=np.float64)
+            v[taller_is[top]] += v[top]
+            v[top] = 0.0
+            out[i] = v
+    return out
 
 
 def most_confident(dets: list, k: int) -> list:

@@ -18,7 +18,8 @@ from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, greedy_merges,
-    half_diagonals, match_reach, merge_pairs, nearest_under_threshold, similar_volume, thresholds_for, within_reach,
+    half_diagonals, label_survivor, match_reach, merge_pairs, nearest_under_threshold, similar_volume, thresholds_for,
+    within_reach,
 )
 from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, merge_objects, merged_box, stale_side, stale_weight,
@@ -389,26 +390,41 @@ class Mapper:
         a_cfg = self.cfg["association"]
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
                             match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows])
-        merges = greedy_merges(pairs, rows + 1)
+        merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
         return len(merges)
+
+    def _merged(self, older: int, newer: int):
+        """(box, class vector) of two map objects merged; the older one takes the role of the map
+        object and the newer one of the observation, whichever keeps its id."""
+        t, i_cfg = self.map.objects, self.cfg["integration"]
+        b_old, b_new = t.box(older), t.box(newer)
+        # Two labels of one object: each class vector weighs as its observations (relabel_weight all).
+        same = int(top_class(t.scores[older])) == int(top_class(t.scores[newer]))
+        w_old, w_new = (label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same, i_cfg["relabel_weight"])
+                        for r in (older, newer))
+        box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
+                                    i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+        side = stale_side(t.last_session[older] == self.session, t.last_session[newer] == self.session) \
+            if self.cfg["association"]["merge_current_box"] else None
+        return merged_box(box, b_old, b_new, side, self._foreign(t.scores[newer], t.scores[older], b_new, b_old)), scores
+
+    def _survivor(self, rows: np.ndarray, a: int, b: int) -> int:
+        """Which of rows[a] (older) and rows[b] (newer), about to merge, keeps its id (a or b)."""
+        t = self.map.objects
+        by_label = self.cfg["association"]["merge_id_by_label"]
+        tops = top_class(t.scores[rows[[a, b]]])
+        if not by_label or tops[0] == tops[1]:
+            return a
+        _, scores = self._merged(int(rows[a]), int(rows[b]))
+        return b if label_survivor(int(tops[0]), int(tops[1]), int(top_class(scores)), by_label) else a
 
     def _absorb(self, keep, drop, frame_index, frame_key) -> None:
         t = self.map.objects
         self._touch(keep)
         self._touch(drop)
-        i_cfg = self.cfg["integration"]
-        b_keep, b_drop = t.box(keep), t.box(drop)
-        # Two labels of one object: each class vector weighs as its observations (relabel_weight all).
-        same = int(top_class(t.scores[keep])) == int(top_class(t.scores[drop]))
-        w_keep, w_drop = (label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same, i_cfg["relabel_weight"])
-                          for r in (keep, drop))
-        box, scores = merge_objects(b_keep, b_drop, t.scores[keep], t.scores[drop], w_keep, w_drop,
-                                    i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
-        side = stale_side(t.last_session[keep] == self.session, t.last_session[drop] == self.session) \
-            if self.cfg["association"]["merge_current_box"] else None
-        box = merged_box(box, b_keep, b_drop, side, self._foreign(t.scores[drop], t.scores[keep], b_drop, b_keep))
+        box, scores = self._merged(min(keep, drop), max(keep, drop))
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet", "n_clear"):
