@@ -30,9 +30,13 @@ def mapper_with_chair(cfg, n_det, session=1, first_session=0, last_session=0, sc
 
 
 def every_miss_counts(cfg):
+    """Each miss counts, with the fixed v_Other 0.5 and D capped at 5 (the values the hand
+    computations below use; the defaults learn v_Other per class and cap D at 20)."""
     m = cfg["maintenance"]
     m["nondet_min_move"] = m["nondet_min_turn"] = m["seen_empty_share"] = m["v_other_seen_empty"] = None
     m["absent_after_views"] = None
+    m["learn_detection_rate"] = False
+    cfg["integration"]["max_weight"] = 5
     return cfg
 
 
@@ -48,9 +52,10 @@ def test_a_run_of_another_label_does_not_relabel_an_object_seen_30_times(mode):
     """A chair (chair 0.9, 0.1 / 9 on each other class) detected 30 times, then 5 frames in a row
     called class1 (0.8, 0.2 / 9 on each other class). Eq. 3 with D = 30, 31, ..., 34 ("all") leaves
     chair = 0.2/9 + (0.9 - 0.2/9) * 30/35 = 0.755; with D = 5 each time ("capped") the chair falls to
-    0.2/9 + (0.9 - 0.2/9) * (5/6)^5 = 0.375 and class1 (0.475) leads."""
+    0.2/9 + (0.9 - 0.2/9) * (5/6)^5 = 0.375 and class1 (0.475) leads (max_weight 5)."""
     cfg = defaults()
     cfg["integration"]["relabel_weight"] = mode
+    cfg["integration"]["max_weight"] = 5
     mapper, row = mapper_with_chair(cfg, n_det=30)
     seen, masks = render([CHAIR_FACE], wall_x=4.0)
     called = np.full(len(CLASSES) + 1, 0.2 / 9)

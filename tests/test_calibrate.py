@@ -298,9 +298,10 @@ def test_higher_v_other_removes_gone_objects_after_fewer_non_detections(house, t
         m = tmp_path / f"{name}.h5"
         shutil.copyfile(base, m)
         # The detector's calibration alone: misses are the detector's word (not the depth's), each
-        # one counting, as when v_Other was the only knob.
+        # one counting, with D capped at 5, as when v_Other was the only knob.
         r = run("ingest", out / "lap2", "--map", m, "--calibration", cal, "--set", "maintenance.seen_empty_share=null",
-                "--set", "maintenance.nondet_min_move=null", "--set", "maintenance.nondet_min_turn=null")
+                "--set", "maintenance.nondet_min_move=null", "--set", "maintenance.nondet_min_turn=null",
+                "--set", "integration.max_weight=5")
         assert r.exit_code == 0, r.output
         assert load_map(m).sessions[1]["v_other"] == pytest.approx(v_high if name == "high" else 0.3)
         records[name] = removal_record(m, {g: lap1_gt[g] for g in gone})
@@ -330,3 +331,15 @@ def test_match_frame_with_large_ids():
     gt_ids, px, pairs = match_frame(ids, [rect(0, 10, 20, 30), rect(0, 10, 0, 10)], 0.5)
     assert gt_ids.tolist() == [70_000, 3_000_000] and px.tolist() == [100, 100]
     assert sorted(pairs) == [(0, 0, 1.0), (1, 1, 1.0)]
+
+
+def test_a_calibration_replaces_the_learnt_detection_rate():
+    """The default learns v_Other per class from the map; a calibration measured on annotated frames
+    is the better estimate, so with one the learnt rate is off and its v_Other values are used."""
+    from ltc_cli.config import defaults, settings_from
+    from ltc_cli.tools.calibration_file import calibration_settings
+
+    assert defaults()["maintenance"]["learn_detection_rate"] is True
+    doc = {"v_other": 0.7, "per_class": {"chair": {"v_other": 0.6}, "tv": {"recall": 0.2}}}
+    m = settings_from(defaults(), calibration_settings(doc))["maintenance"]
+    assert (m["learn_detection_rate"], m["v_other"], m["v_other_per_class"]) == (False, 0.7, {"chair": 0.6})

@@ -80,8 +80,11 @@ def test_v_other_from_rate_by_hand():
 def test_seen_50_times_survives_5_clear_misses_at_rate_one_half_and_goes_after_enough():
     """A chair seen in 50 frames, of a class the detector finds half the time (another chair out of
     view carries the rate: 1000 clear views, 500 hits). Each clear miss fuses eq. 4 with D capped
-    at 5; the expected vectors are computed here step by step from the equations."""
+    at integration.max_weight (the default, 20); the expected vectors are computed here step by
+    step from the equations."""
     cfg = learning_config()
+    cap = cfg["integration"]["max_weight"]
+    assert cap == 20
     mapper = make_mapper(cfg)
     add_object(mapper, [40.0, 40.0, 0.5], [0.5, 0.5, 1.0], chair_vector(), n_det=500, n_clear=1000, n_nondet=500)
     row = add_object(mapper, *CHAIR_BOX, chair_vector(0.9), n_det=50)
@@ -91,12 +94,12 @@ def test_seen_50_times_survives_5_clear_misses_at_rate_one_half_and_goes_after_e
     s = chair_vector(0.9)
     views, hits = 1000, 500
     removed_at = None
-    for k in range(1, 30):
+    for k in range(1, 200):
         p = (hits + 20 * 0.5) / (views + 20)
         v = np.clip(0.5 * p * 0.6 / (1 - p), 0.05, 0.9)
         e = np.full(len(CLASSES) + 1, (1 - v) / len(CLASSES))
         e[-1] = v
-        s = (e + 5 * s) / (e + 5 * s).sum()  # eq. 3, D = min(50 + k - 1, 5)
+        s = (e + cap * s) / (e + cap * s).sum()  # eq. 3, D = min(50 + k - 1, cap)
         mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
         np.testing.assert_allclose(mapper.map.objects.scores[row], s, atol=1e-12)
         if s.argmax() == len(CLASSES):
@@ -148,6 +151,7 @@ def test_a_miss_seen_through_counts_and_weighs_more():
     cfg = defaults()
     m = cfg["maintenance"]
     m["nondet_min_move"], m["nondet_min_turn"], m["seen_empty_share"], m["v_other_seen_empty"] = 0.25, 20, 0.75, 0.9
+    cfg["integration"]["max_weight"] = 5  # the D of the hand value below
     mapper = make_mapper(cfg)
     gone = add_object(mapper, *CHAIR_BOX, chair_vector(), n_det=50)
     empty, _ = render([], wall_x=4.0)

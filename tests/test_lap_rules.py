@@ -187,8 +187,9 @@ def test_stale_weight_by_hand():
     (1.0, 1, 0.05),        # already detected in session 1: the weight 5 as before
 ])
 def test_a_stale_box_weighs_at_most_the_cap_against_its_next_detection(cap, last_session, expected_y):
-    """A Defined chair box at y 0 (20 detections: weight 5) and a Defined detection at y 0.3."""
+    """A Defined chair box at y 0 (20 detections: weight 5 under a cap of 5) and a Defined detection at y 0.3."""
     cfg = defaults()
+    cfg["integration"]["max_weight"] = 5
     cfg["integration"]["stale_box_weight"] = cap
     smap = SemanticMap.new(CLASSES)
     t = smap.objects

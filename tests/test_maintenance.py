@@ -17,6 +17,7 @@ def every_miss_counts(cfg):
     """The paper's stage 4, which the hand values below follow: each miss counts, with v_Other."""
     m = cfg["maintenance"]
     m["nondet_min_move"] = m["nondet_min_turn"] = m["seen_empty_share"] = m["v_other_seen_empty"] = None
+    m["learn_detection_rate"] = False
     return cfg
 
 

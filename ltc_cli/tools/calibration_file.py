@@ -231,12 +231,15 @@ def load_calibration(path) -> dict:
 
 
 def calibration_settings(doc: dict) -> dict:
-    """The settings a calibration document gives an ingest: v_Other overall and per class."""
+    """The settings a calibration document gives an ingest: v_Other overall and per class. The
+    response measured on annotated frames replaces the detection rate learnt from the map
+    (``maintenance.learn_detection_rate`` off), which is the estimate for users who have none."""
     per_class = {
         name: float(stats["v_other"]) for name, stats in (doc.get("per_class") or {}).items()
         if isinstance(stats, dict) and stats.get("v_other") is not None
     }
-    return {"maintenance": {"v_other": float(doc["v_other"]), "v_other_per_class": per_class}}
+    return {"maintenance": {"v_other": float(doc["v_other"]), "v_other_per_class": per_class,
+                            "learn_detection_rate": False}}
 
 
 __all__ = ["Calibration", "CalibrationError", "ClassStats", "InstanceOutcome", "FORMAT", "METHOD",
