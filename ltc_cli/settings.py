@@ -21,6 +21,7 @@ class ModelingSettings(TypedDict):
     max_depth: float
     edge_jump: Optional[float]
     picture_flatness: Optional[float]
+    picture_depth_noise: Optional[float]
     min_depth_share: Optional[float]
     clustering: str
     eps: float

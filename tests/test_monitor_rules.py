@@ -98,3 +98,20 @@ def test_a_monitor_foot_mapped_first_as_mouse_joins_the_tv_under_the_tvs_id(by_l
     assert t.n_det[kept] == 45
     merged = [e for e in smap.events if e.kind == "merged"]
     assert [(e.object_id, e.other_id) for e in merged] == [(kept + 1, gone + 1)]
+
+
+@pytest.mark.parametrize("front_x, noise, expected", [
+    (2.99, 0.0, False),    # a poster 1 cm proud of a noisy wall 3 m away: a fixed 2.5 cm is too tight
+    (2.99, 0.005, True),   # 2.5 cm + 0.005 * 3^2 = 7 cm: the wall around it is one surface, and so is it
+    (2.7, 0.005, False),   # a screen 0.3 m in front of the wall is not a picture
+])
+def test_the_picture_tolerance_grows_with_the_depth_noise(front_x, noise, expected):
+    """Depth with the simulator's Kinect-like noise, sigma 0.005 Z^2 (4.5 cm at 3 m), over a wall at
+    x = 3 m and a 0.6 x 0.5 m thing whose front is at front_x. Within 2.5 cm of the fitted plane
+    lies 2 Phi(0.025 / 0.045) - 1 = 42 % of the wall (the test needs 80 %); within 7 cm, 88 %."""
+    from ltc_cli.pipeline.pictures import flat_on_wall
+
+    depth, masks = render([(front_x, 3.0, -0.3, 0.3, 0.9, 1.4)], wall_x=3.0)
+    rng = np.random.default_rng(7)
+    noisy = (depth + 0.005 * depth**2 * rng.standard_normal(depth.shape)).astype(np.float32)
+    assert flat_on_wall(masks[0], noisy, INTR, T_world_camera(), 0.025, noise_per_m2=noise) is expected

@@ -90,7 +90,9 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
     flatness = config["modeling"]["picture_flatness"]
     if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
-        keep = [i for i, m in enumerate(masks) if not flat_on_wall(m, depth_m, intr, T_map_camera, flatness)]
+        noise = config["modeling"]["picture_depth_noise"] or 0.0
+        keep = [i for i, m in enumerate(masks)
+                if not flat_on_wall(m, depth_m, intr, T_map_camera, flatness, noise_per_m2=noise)]
         masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,

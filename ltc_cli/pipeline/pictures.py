@@ -34,12 +34,16 @@ def square_dilation(mask: np.ndarray, radius: int) -> np.ndarray:
 
 def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray,
                  tolerance: float, band_px: int = 10, gap_px: int = 3, max_tilt: float = 0.3,
-                 min_points: int = 40, step: int = 3) -> bool:
+                 min_points: int = 40, step: int = 3, noise_per_m2: float = 0.0) -> bool:
     """True when the detection (mask (H, W) bool) lies flat on a wall: the pixels in a band around
     the mask (``gap_px`` to ``gap_px + band_px`` pixels out, past where masks bleed) fit one plane,
     that plane is vertical (|normal z| <= ``max_tilt``; map z is up), 80 % of the band lies within
-    ``tolerance`` of it, and the mask's own pixels lie within ``tolerance`` of it (median distance;
+    the tolerance of it, and the mask's own pixels lie within the tolerance of it (median distance;
     fewer than half of them standing out towards the camera).
+
+    The tolerance is ``tolerance + noise_per_m2 * Z^2`` at the band's median depth Z: a depth
+    sensor's noise grows with the square of the depth (Kinect v1: sigma about 0.0019 Z^2, Nguyen et
+    al., 3DIMPVT 2012), so a fixed 2.5 cm calls a poster 3 m away "not flat" half the time.
 
     A picture lying on a table (a book, a keyboard) is on a horizontal surface and never counts:
     only walls hang pictures that detectors mistake for screens.
@@ -66,6 +70,7 @@ def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_
     z_ring, z_in = z_ring[z_ring > 0], z_in[z_in > 0]
     if z_ring.size < min_points or z_in.size < min_points // 4:
         return False
+    tolerance = tolerance + noise_per_m2 * float(np.median(z_ring)) ** 2
     if np.median(z_ring) - np.median(z_in) > 4 * tolerance:
         return False  # it stands well in front of what is around it: the quick answer
     ring = _points_map(bv, bu, depth_m, intr, T_map_camera)
