@@ -101,6 +101,22 @@ def census(map_path) -> tuple[Counter, set]:
     return Counter(smap.classes[int(c)] for c in top_class(t.scores[rows])), set((rows + 1).tolist())
 
 
+def lost_ids(map_path, ids: set) -> list[str]:
+    """What became of each session-1 id that the revisit lost: class, place and the event that ended
+    it (so a lost id can be read as a wrong object cleaned up or a real one dropped)."""
+    smap = load_map(map_path)
+    t, out = smap.objects, []
+    for oid in sorted(ids):
+        r = oid - 1
+        ends = [e for e in smap.events if e.session >= 1 and e.kind in ("removed", "merged")
+                and (e.object_id == oid if e.kind == "removed" else e.other_id == oid)]
+        how = (f"{ends[-1].kind} at frame {ends[-1].frame}" + (f" into {ends[-1].object_id}" if ends[-1].kind == "merged"
+               else f" ({ends[-1].detail})")) if ends else "?"
+        out.append(f"{smap.classes[int(top_class(t.scores[r]))]} {oid} at ({t.center[r][0]:.2f}, {t.center[r][1]:.2f}, "
+                   f"{t.center[r][2]:.2f}), {int(t.n_det[r])} detections: {how}")
+    return out
+
+
 def verdict(name: str, counts: Counter) -> str:
     truth = TRUTH.get(name, {})
     bad = [f"{c} {counts.get(c, 0)} not in [{lo}, {hi}]" for c, (lo, hi) in truth.items()
@@ -144,6 +160,8 @@ def main():
             kept = len(ids1 & ids2) / max(len(ids1), 1)
             n1, n2 = sum(first.values()), sum(second.values())
             print(f"  objects {n1} -> {n2} on --revisit ({(n2 - n1) / max(n1, 1):+.0%}); ids kept {kept:.0%}")
+            for line in lost_ids(m, ids1 - ids2):
+                print(f"    lost on --revisit: {line}")
             print(f"  session 1: {verdict(name, first)}")
             print(f"  reversed:  {verdict(name, rev)}; largest per-class difference from session 1: "
                   f"{max((abs(first.get(c, 0) - rev.get(c, 0)) for c in classes), default=0)}")
