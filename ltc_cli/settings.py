@@ -87,6 +87,7 @@ class MaintenanceSettings(TypedDict):
     absent_quiet_views: Optional[int]
     spare_frames: Optional[int]
     hidden_by_whole_box: Union[bool, str]
+    hide_needs_depth: Union[bool, str]
     ray_step: int
     depth_tolerance: float
 

@@ -298,10 +298,11 @@ def test_higher_v_other_removes_gone_objects_after_fewer_non_detections(house, t
         m = tmp_path / f"{name}.h5"
         shutil.copyfile(base, m)
         # The detector's calibration alone: misses are the detector's word (not the depth's), each
-        # one counting, with D capped at 5, as when v_Other was the only knob.
+        # one counting, with D capped at 5 and no removal at the session's end (absence), as when
+        # v_Other was the only knob.
         r = run("ingest", out / "lap2", "--map", m, "--calibration", cal, "--set", "maintenance.seen_empty_share=null",
                 "--set", "maintenance.nondet_min_move=null", "--set", "maintenance.nondet_min_turn=null",
-                "--set", "integration.max_weight=5")
+                "--set", "integration.max_weight=5", "--set", "maintenance.absent_after_views=null")
         assert r.exit_code == 0, r.output
         assert load_map(m).sessions[1]["v_other"] == pytest.approx(v_high if name == "high" else 0.3)
         records[name] = removal_record(m, {g: lap1_gt[g] for g in gone})

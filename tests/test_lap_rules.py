@@ -96,6 +96,25 @@ def test_a_box_wholly_in_front_still_hides(whole_box):
     assert vis[0] == 0
 
 
+@pytest.mark.parametrize("chair_there, needs_depth, expected_share", [
+    (False, False, 0.0),        # the chair's box hides the cup's place, whatever the depth says
+    (False, True, 1.0),         # the depth reaches 2 m, past the box's far side (1.3 + 0.2): not hidden
+    (False, "absence", 0.0),    # ...for the absence rule's count only
+    (True, True, 0.0),          # the chair is there (its face at 1.0 m): it hides the cup
+])
+def test_a_box_hides_only_where_the_depth_ends_in_it(chair_there, needs_depth, expected_share):
+    """The chair's box (x 1.0-1.3) lies wholly in front of the cup (face at 2 m). When the depth
+    shows the cup's face through it (the chair was a coarse box, or is gone), the box hides nothing
+    with hide_needs_depth; when the chair's face is at 1.0 m, it hides the cup either way. The
+    whole-box count (last) follows "absence" as well as True."""
+    depth, _ = render([CUP, CHAIR] if chair_there else [CUP], wall_x=4.0)
+    vis, proj, vis_whole = pixel_counts(boxes(CUP, CHAIR), T_world_camera(), depth, INTR, 2, 0.2, (0.3, 6.0),
+                                        with_whole_box=True, hide_needs_depth=needs_depth)
+    assert proj[0] == pytest.approx(2500, rel=0.1)
+    assert vis[0] == pytest.approx(expected_share * proj[0])
+    assert vis_whole[0] == pytest.approx((0.0 if chair_there or not needs_depth else 1.0) * proj[0])
+
+
 @pytest.mark.parametrize("quiet, detect_in_session_2, expected", [
     (2, False, REMOVED),     # 3 + 3 = 6 clear views since its last detection >= 5, two sessions quiet
     (None, False, ACTIVE),   # 3 < 5 in each session

@@ -130,6 +130,7 @@ def pixel_counts(
     with_empty: bool = False,
     hidden_by_whole_box: bool = False,
     with_whole_box: bool = False,
+    hide_needs_depth: bool | str = False,
 ):
     """Pixels of each box that the camera should see: (visible (M,), projected (M,)), and with
     ``with_empty`` also empty (M,): those of the visible pixels whose observed depth lies beyond
@@ -148,6 +149,12 @@ def pixel_counts(
     A cup on a table lies inside the table's box: every ray to the cup enters the table's box first,
     so by the entry test alone the cup is never visible and never missed, and a cup taken away stays
     in the map for ever. A chair in front of a cabinet still hides it (its box ends before).
+
+    ``hide_needs_depth``: a box hides a ray only where the observed depth ends in it or before its
+    far side (or there is no reading): a box is coarser than its object (a chair's box is solid
+    where its back is slats and air), and where the camera saw past the box, nothing in it hid
+    what lies beyond. Without it, a cup taken from a table behind a chair's box was never seen to
+    be gone (issue 9, sixth round). ``"absence"``: for the whole-box count only.
     """
     m = len(boxes)
     if m == 0:
@@ -164,14 +171,17 @@ def pixel_counts(
     obs = depth_m[v.astype(int), u.astype(int)][ray]
     depth_ok = in_range & (obs > 0) & (obs >= entry - depth_tolerance)
 
-    def unhidden(whole_box):
+    boxed = np.isfinite(entry)
+    stops = boxed & ((obs <= 0) | (obs <= exit_ + depth_tolerance))
+
+    def unhidden(whole_box, needs_depth):
         # Entry: the first box a ray enters hides the others; whole box: a box hides what lies
         # beyond its exit (a box's own exit is never before its entry: it never hides itself).
         nearest = np.full(len(u), np.inf)
-        np.minimum.at(nearest, ray, np.where(np.isfinite(entry), exit_, np.inf) if whole_box else entry)
+        np.minimum.at(nearest, ray, np.where(stops if needs_depth else boxed, exit_ if whole_box else entry, np.inf))
         return entry <= nearest[ray]
 
-    seen = depth_ok & unhidden(hidden_by_whole_box)
+    seen = depth_ok & unhidden(hidden_by_whole_box, hide_needs_depth is True)
     scale = float(step * step)
 
     def per_box(flags):
@@ -181,7 +191,8 @@ def pixel_counts(
     if with_empty:
         out.append(per_box(seen & (obs > exit_ + depth_tolerance)))
     if with_whole_box:
-        out.append(out[0] if hidden_by_whole_box else per_box(depth_ok & unhidden(True)))
+        same = hidden_by_whole_box and (hide_needs_depth is True or not hide_needs_depth)
+        out.append(out[0] if same else per_box(depth_ok & unhidden(True, bool(hide_needs_depth))))
     return tuple(out)
 
 

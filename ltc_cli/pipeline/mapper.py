@@ -265,7 +265,8 @@ class Mapper:
         whole = m_cfg["hidden_by_whole_box"]  # True: for every count; "absence": the absence rule's only
         vis_px, proj_px, empty_px, *vis_absent = pixel_counts(
             self.map.objects.boxes(rows), T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"],
-            depth_range, with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence")
+            depth_range, with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence",
+            hide_needs_depth=m_cfg["hide_needs_depth"])
         scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
         need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
