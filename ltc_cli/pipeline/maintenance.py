@@ -196,6 +196,23 @@ def pixel_counts(
     return tuple(out)
 
 
+def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, intr: Intrinsics,
+                depth_range: tuple[float, float], m_cfg: dict):
+    """(visible, needed, empty, visible for the absence rule), each (M,) pixels, of boxes in view,
+    by the maintenance settings ``m_cfg``: :func:`pixel_counts` with its hiding rules
+    (``hidden_by_whole_box``: True for every count, "absence" for the absence rule's only;
+    ``hide_needs_depth``) and :func:`required_pixels` scaled from 640x480 to the image."""
+    whole = m_cfg["hidden_by_whole_box"]
+    vis_px, proj_px, empty_px, *vis_absent = pixel_counts(
+        boxes, T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
+        with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence",
+        hide_needs_depth=m_cfg["hide_needs_depth"])
+    scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
+    need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
+                           m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
+    return vis_px, need, empty_px, (vis_absent or [vis_px])[0]
+
+
 def visible_pixels(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range) -> np.ndarray:
     """The ``visible`` half of :func:`pixel_counts`: (M,) pixels."""
     return pixel_counts(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range)[0]

@@ -26,8 +26,8 @@ from ltc_cli.pipeline.integration import (
 )
 from ltc_cli.pipeline.maintenance import (
     absent_detail, absent_in_session, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
-    new_view, non_detection_vectors, other_leads, other_leads_detail, pixel_counts, required_pixels, seen_empty,
-    unconfirmed, unconfirmed_detail, v_other_from_detection_rate,
+    new_view, non_detection_vectors, other_leads, other_leads_detail, seen_empty, unconfirmed, unconfirmed_detail,
+    v_other_from_detection_rate, view_counts,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy
@@ -262,14 +262,8 @@ class Mapper:
         pixels to say so); which of the missed ones the depth showed to be free space; and which
         were clearly visible by ``hidden_by_whole_box`` ("absence": by the whole-box rule)."""
         m_cfg = self.cfg["maintenance"]
-        whole = m_cfg["hidden_by_whole_box"]  # True: for every count; "absence": the absence rule's only
-        vis_px, proj_px, empty_px, *vis_absent = pixel_counts(
-            self.map.objects.boxes(rows), T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"],
-            depth_range, with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence",
-            hide_needs_depth=m_cfg["hide_needs_depth"])
-        scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
-        need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
-                               m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
+        vis_px, need, empty_px, vis_absent = view_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
+                                                         depth_range, m_cfg)
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
         if m_cfg["spare_frames"] is not None:
             t = self.map.objects
@@ -282,7 +276,7 @@ class Mapper:
             t, view = self.map.objects, camera_view(T_map_camera)
             missed &= empty | new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
             t.cols["nondet_view"][rows[missed]] = view
-        return missed, vis_px >= need, empty, (vis_absent or [vis_px])[0] >= need
+        return missed, vis_px >= need, empty, vis_absent >= need
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
                           min_share: float | None = None) -> int:
