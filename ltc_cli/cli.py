@@ -180,6 +180,14 @@ def ingest_many(manifest, dask_spec, dask_batch, writers, checkpoint_every, stri
         sys.exit(1)
 
 
+def _learnt_rate(session: dict) -> bool:
+    """Whether a session learnt v_Other per class from the map (then its v_other is only the prior)."""
+    try:
+        return bool(json.loads(session.get("settings") or "{}").get("maintenance", {}).get("learn_detection_rate"))
+    except (ValueError, AttributeError):
+        return False
+
+
 @cli.command()
 @click.argument("map_path", type=click.Path())
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
@@ -211,7 +219,7 @@ def info(map_path, fmt):
         "events": smap.n_events,
         "sessions": [
             {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped", "v_other")}
-            | {"visit": max(1, int(s.get("visit") or 0))}
+            | {"visit": max(1, int(s.get("visit") or 0)), "v_other_learnt": _learnt_rate(s)}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
             for s in smap.sessions
         ],
@@ -233,7 +241,8 @@ def info(map_path, fmt):
     for i, s in enumerate(doc["sessions"]):
         visit = f"  visit {s['visit']}" if s["visit"] > 1 else ""
         click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped){visit}  "
-                   f"{s['detector']}/{s['metric']}/{s['policy']} v_other={s['v_other']:.3g}  {', '.join(s['sources'])}")
+                   f"{s['detector']}/{s['metric']}/{s['policy']} v_other="
+                   f"{'learnt per class' if s['v_other_learnt'] else format(s['v_other'], '.3g')}  {', '.join(s['sources'])}")
     click.echo(f"{map_path}: {_plural(o['active'], 'object')} of {_plural(len(per_class), 'class')} from "
                f"{_plural(len(smap.frame_keys), 'frame')} in {_plural(len(smap.sessions), 'session')}")
 

@@ -84,6 +84,17 @@ def test_two_laps_two_sessions_removes_the_absent_object(tmp_path):
     assert sorted(c for c, _, _ in active_objects(m2)) == ["chair", "table", "tv"]
     r = run("info", m)
     assert r.exit_code == 0 and "2 sessions" in r.output.splitlines()[-1]
+    # v_Other was learnt per class (the default): info says so instead of the 0.5 prior.
+    assert r.output.count("v_other=learnt per class") == 2
+
+
+def test_info_shows_a_fixed_v_other_when_nothing_is_learnt(tmp_path):
+    lap1 = write_recording(tmp_path / "lap1")
+    m = tmp_path / "map.h5"
+    assert run("ingest", lap1, "--map", m, "--set", "maintenance.learn_detection_rate=false",
+               "--set", "maintenance.v_other=0.7").exit_code == 0
+    r = run("info", m)
+    assert r.exit_code == 0 and "v_other=0.7 " in r.output and "learnt" not in r.output
 
 
 def ltc_process(*args, env_extra=None):
