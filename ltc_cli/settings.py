@@ -82,6 +82,7 @@ class MaintenanceSettings(TypedDict):
     min_visible_share: float
     min_detections: int
     min_detection_share: Optional[float]
+    tentative_until_end: bool
     absent_after_views: Optional[int]
     absent_quiet_sessions: Optional[int]
     absent_quiet_views: Optional[int]

@@ -314,6 +314,15 @@ def new_view(last_views: np.ndarray, view: np.ndarray, min_move: float | None, m
     return fresh
 
 
+def tentative(first_session: int, n_det: int, session: int, min_detections: int) -> bool:
+    """Whether an object is still tentative: created in this session and detected fewer than
+    ``min_detections`` times. Eq. 4 weighs a miss against D observations; with D = 1 one or two
+    misses remove it, and a real object the detector finds one time in three is deleted and built
+    again, again and again. Whether a tentative object is real is the confirmation rule's question
+    (:func:`unconfirmed`, at the session's end: M detections in N clear views), not eq. 4's."""
+    return bool(first_session == session and n_det < min_detections)
+
+
 def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min_share: float | None) -> np.ndarray:
     """(M,) bool: objects too few detections confirm: fewer than ``min_detections``, or fewer than
     ``min_share`` of the frames in which they were clearly visible (None: no share)."""

@@ -26,8 +26,8 @@ from ltc_cli.pipeline.integration import (
 )
 from ltc_cli.pipeline.maintenance import (
     absent_detail, absent_in_session, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
-    new_view, non_detection_vectors, other_leads, other_leads_detail, seen_empty, unconfirmed, unconfirmed_detail,
-    v_other_from_detection_rate, view_counts,
+    new_view, non_detection_vectors, other_leads, other_leads_detail, seen_empty, tentative, unconfirmed,
+    unconfirmed_detail, v_other_from_detection_rate, view_counts,
 )
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy
@@ -371,6 +371,10 @@ class Mapper:
         t.cols["scores"][row] = s
         t.cols["n_nondet"][row] += 1
         self._log(frame_index, frame_key, "non-detection", row + 1)
+        m_cfg = self.cfg["maintenance"]
+        if m_cfg["tentative_until_end"] and tentative(t.first_session[row], t.n_det[row], self.session,
+                                                      m_cfg["min_detections"]):
+            return False  # the confirmation rule judges it at the session's end
         if not bool(np.asarray(self._removals(s[None]))[0]):
             return False
         self._remove(row, frame_index, frame_key, other_leads_detail(s, self.map.classes, t.n_nondet[row], t.n_det[row]))
