@@ -110,8 +110,13 @@ def merge_objects(keep: Box, drop: Box, s_keep: np.ndarray, s_drop: np.ndarray, 
     class vectors follow eq. 3 generalised to two map objects: the observation-weighted mean.
     """
     box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent)
+    return box, merged_scores(s_keep, s_drop, w_keep, w_drop)
+
+
+def merged_scores(s_keep: np.ndarray, s_drop: np.ndarray, w_keep: float, w_drop: float) -> np.ndarray:
+    """The class vector (C+1,) of two merged map objects: eq. 3 generalised, the weighted mean."""
     s = w_keep * s_keep + w_drop * s_drop
-    return box, s / s.sum()
+    return s / s.sum()
 
 
 def stale_side(keep_current: bool, drop_current: bool) -> str | None:

@@ -191,7 +191,8 @@ def pixel_counts(
     if with_empty:
         out.append(per_box(seen & (obs > exit_ + depth_tolerance)))
     if with_whole_box:
-        same = hidden_by_whole_box and (hide_needs_depth is True or not hide_needs_depth)
+        # The same count as the first when both use the whole-box rule and the same depth rule.
+        same = hidden_by_whole_box and (hide_needs_depth is True) == bool(hide_needs_depth)
         out.append(out[0] if same else per_box(depth_ok & unhidden(True, bool(hide_needs_depth))))
     return tuple(out)
 

@@ -22,7 +22,7 @@ from ltc_cli.pipeline.association import (
     within_reach,
 )
 from ltc_cli.pipeline.integration import (
-    fuse_scores, integrate_box, label_weight, merge_objects, merged_box, stale_side, stale_weight,
+    fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, stale_side, stale_weight,
 )
 from ltc_cli.pipeline.maintenance import (
     absent_detail, absent_in_session, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
@@ -394,15 +394,19 @@ class Mapper:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
         return len(merges)
 
+    def _merge_weights(self, older: int, newer: int) -> tuple[float, float]:
+        t = self.map.objects
+        # Two labels of one object: each class vector weighs as its observations (relabel_weight all).
+        same = int(top_class(t.scores[older])) == int(top_class(t.scores[newer]))
+        return tuple(label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same,
+                                  self.cfg["integration"]["relabel_weight"]) for r in (older, newer))
+
     def _merged(self, older: int, newer: int):
         """(box, class vector) of two map objects merged; the older one takes the role of the map
         object and the newer one of the observation, whichever keeps its id."""
         t, i_cfg = self.map.objects, self.cfg["integration"]
         b_old, b_new = t.box(older), t.box(newer)
-        # Two labels of one object: each class vector weighs as its observations (relabel_weight all).
-        same = int(top_class(t.scores[older])) == int(top_class(t.scores[newer]))
-        w_old, w_new = (label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same, i_cfg["relabel_weight"])
-                        for r in (older, newer))
+        w_old, w_new = self._merge_weights(older, newer)
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
         side = stale_side(t.last_session[older] == self.session, t.last_session[newer] == self.session) \
@@ -416,7 +420,8 @@ class Mapper:
         tops = top_class(t.scores[rows[[a, b]]])
         if not by_label or tops[0] == tops[1]:
             return a
-        _, scores = self._merged(int(rows[a]), int(rows[b]))
+        older, newer = int(rows[a]), int(rows[b])
+        scores = merged_scores(t.scores[older], t.scores[newer], *self._merge_weights(older, newer))
         return b if label_survivor(int(tops[0]), int(tops[1]), int(top_class(scores)), by_label) else a
 
     def _absorb(self, keep, drop, frame_index, frame_key) -> None:

@@ -45,6 +45,8 @@ def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_
     Nguyen et al., 3DIMPVT 2012): at 3 m a fixed 2.5 cm band holds well under 80 % of a plain wall.
     The median of the mask's hundreds of distances is nearly free of that noise, so the test of
     how far the detection stands out keeps the fixed tolerance: a tv 5 cm proud of the wall stays.
+    With ``noise_per_m2`` 0 (the setting's null) the earlier inside test stays: median distance
+    within ``tolerance`` and fewer than half of the pixels standing out towards the camera.
 
     A picture lying on a table (a book, a keyboard) is on a horizontal surface and never counts:
     only walls hang pictures that detectors mistake for screens.
