@@ -193,3 +193,46 @@ def test_dining_room_up():
         f"{err:.2f} deg apart (camera-only guess {angle_deg(cameras_up(poses), readme):.1f} deg)"
     )
     assert err < 8.0
+
+
+def desk_facing_wall(pitch_deg: float):
+    """A z-up office like tum-fr1-rpy: floor z = 0, a desk top z = 0.75 (x 0.3..1.4, |y| < 1.2) and
+    the wall behind it x = 1.5, seen by a hand-held camera at z = 1.2 looking at the desk (towards
+    +x), pitched down by ``pitch_deg`` and rolled and turned a little."""
+    planes = [
+        ((0.0, 0.0, 1.0), 0.0, None),
+        ((0.0, 0.0, 1.0), 0.75, lambda p: (p[..., 0] > 0.3) & (p[..., 0] < 1.4) & (np.abs(p[..., 1]) < 1.2)),
+        ((1.0, 0.0, 0.0), 1.5, None),
+    ]
+    rng = np.random.default_rng(7)
+    poses = [
+        camera_pose([rng.uniform(-0.1, 0.1), rng.uniform(-0.2, 0.2), 1.2], yaw=rng.uniform(-0.3, 0.3),
+                    pitch_down=np.radians(pitch_deg + rng.uniform(-5, 5)), down=(0, 0, -1),
+                    roll=np.radians(rng.uniform(-15, 15)))
+        for _ in range(6)
+    ]
+    return planes, np.stack(poses)
+
+
+def test_camera_looking_down_at_a_desk_finds_the_desk_not_the_wall():
+    """Pitched down by about 42 degrees (tum-fr1-rpy: 39-41), the cameras' guess leans towards the
+    wall they face: the desk's normal is about 42 degrees from the guess, the wall's about 48. The
+    desk must win (the cameras would look up by about 48 degrees under the wall's normal); a search
+    limited to 30 degrees around the guess found neither and left the map tilted."""
+    planes, poses = desk_facing_wall(42.0)
+    guess = cameras_up(poses)
+    assert 35 < angle_deg(guess, [0, 0, 1]) < 50
+    samples = [(render_depth(T, planes), T) for T in poses]
+    up = estimate_up(poses, samples, INTR)
+    assert angle_deg(up, [0, 0, 1]) < 1.0
+
+
+def test_mean_elevation_by_hand():
+    from ltc_cli.ingest.frame_setup import mean_elevation_deg
+
+    # Optical axes pitched down by 10 and 30 degrees in a z-up world: mean elevation -20 degrees;
+    # under +x (the direction they face) as "up", they look up by 90 - 10 and 90 - 30: 70 degrees.
+    poses = np.stack([camera_pose([0, 0, 1], yaw=0.0, pitch_down=np.radians(a), down=(0, 0, -1)) for a in (10, 30)])
+    assert mean_elevation_deg(poses, np.array([0, 0, 1.0])) == pytest.approx(-20.0, abs=1e-9)
+    facing = poses[0, :3, 2] * [1, 1, 0]
+    assert mean_elevation_deg(poses, facing) == pytest.approx(70.0, abs=1e-9)

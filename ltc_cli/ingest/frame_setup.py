@@ -6,8 +6,17 @@ Two cues, both pure numpy:
    -y axis (OpenCV frame: y points down in the image) averaged over the trajectory is a first guess
    that is usually within a few tens of degrees of the true up.
 2. The floor. Depth of a few frames, back-projected to the world, holds large horizontal planes
-   (floor, table tops, seats). Among the planes whose normal is near the first guess, the floor is the
-   lowest one with a large support; its normal is the up direction, typically to a degree or two.
+   (floor, table tops, seats). Planes whose normals agree (within PARALLEL_DEG) are one direction;
+   the direction with the most support under which the cameras do not look upwards on average is
+   the horizontal one, and its lowest plane with a large support is the floor, whose normal is the
+   up direction, typically to a degree or two.
+
+A hand-held camera looking down at a desk leans the first guess forward by its pitch: on
+tum-fr1-rpy by 39-41 degrees, beyond the 30 degree cone this module once searched, so the desk
+was missed and the map came out tilted by 22 degrees. The wall the camera faces then sits nearly
+as close to the guess as the desk (90 degrees minus the pitch), so the cone alone cannot tell
+them apart; the cameras' elevation can: under the wall's normal as "up" they would all look
+steeply upwards, which hand-held and robot cameras do not.
 
 ``up_rotation`` turns the up direction into the rotation the map applies so that up becomes +z.
 """
@@ -22,8 +31,15 @@ from ltc_cli.errors import FrameError, RecordingError
 from ltc_cli.geometry.camera import backproject, rotation_between, transform
 from ltc_cli.types import FrameRef, Recording
 
-# Planes whose normal is further than this from the cameras' guess are walls or slopes, never floor.
-MAX_TILT_FROM_GUESS_DEG = 30.0
+# Planes whose normal is further than this from the cameras' guess are never floor: the guess leans
+# by the cameras' mean pitch, which reaches 40 degrees for a camera looking down at a desk.
+MAX_TILT_FROM_GUESS_DEG = 60.0
+# Plane normals within this angle are one direction (a floor, a desk and a seat; a ramp of a few
+# degrees stays with them, and its lowest plane decides).
+PARALLEL_DEG = 10.0
+# Under the true up the cameras' mean elevation (of their optical axes) is at most level; a
+# candidate under which they look up by more than this on average is a wall.
+MAX_MEAN_ELEVATION_DEG = 20.0
 # Point-to-plane distance (m) that counts as "on the plane": Kinect-class depth noise at 3-4 m is a
 # few centimetres, so tighter thresholds split the floor into slivers.
 INLIER_DISTANCE_M = 0.03
@@ -187,17 +203,46 @@ def estimate_up(
     # The floor rarely fills most of the view; 3 % of the points is a patch of a square metre or so
     # at Kinect range, while still rejecting stray bits of furniture.
     min_support = max(50, int(0.03 * len(points)))
-    planes = _ransac_planes(points, guess, rng, max_planes=5, iterations=300, min_support=min_support)
+    planes = _ransac_planes(points, guess, rng, max_planes=8, iterations=300, min_support=min_support)
     if not planes:
         return guess
     # A plane counts as a floor candidate only with a fair share of the largest plane's support, so a
     # lone low step or rug edge does not win over the real floor.
-    largest = max(s for _, _, s in planes)
-    candidates = [p for p in planes if p[2] >= 0.25 * largest]
-    # Lowest along the guess: the offset d = n . p of the plane measured along its own normal, which
-    # agrees with the guess to within MAX_TILT_FROM_GUESS_DEG.
+    group = horizontal_planes(planes, frames_T_world_camera)
+    if not group:
+        return guess
+    largest = max(s for _, _, s in group)
+    candidates = [p for p in group if p[2] >= 0.25 * largest]
+    # Lowest: the offset d = n . p of each plane along its own normal, all of them within
+    # PARALLEL_DEG of one another.
     n, _, _ = min(candidates, key=lambda p: p[1])
     return _unit(n)
+
+
+def mean_elevation_deg(T_world_camera: np.ndarray, up: np.ndarray) -> float:
+    """The cameras' mean elevation (degrees, positive looking up) under the direction ``up`` (3,):
+    the mean of arcsin(z . up) over their optical axes z, T_world_camera (N, 4, 4)."""
+    z = np.asarray(T_world_camera, dtype=np.float64).reshape(-1, 4, 4)[:, :3, 2]
+    z = z[np.all(np.isfinite(z), axis=1)]
+    return float(np.degrees(np.arcsin(np.clip(z @ _unit(up), -1.0, 1.0))).mean()) if len(z) else 0.0
+
+
+def horizontal_planes(planes: list, T_world_camera: np.ndarray) -> list:
+    """The planes [(n (3,), d, support)] of the horizontal direction: planes grouped by normal
+    (within PARALLEL_DEG of the group's best-supported plane), the group with the most support
+    among those under whose normal the cameras look up by at most MAX_MEAN_ELEVATION_DEG on
+    average; [] when every group fails that."""
+    cos_par = np.cos(np.radians(PARALLEL_DEG))
+    groups: list[list] = []
+    for plane in sorted(planes, key=lambda p: -p[2]):
+        for g in groups:
+            if abs(float(plane[0] @ g[0][0])) >= cos_par:
+                g.append(plane)
+                break
+        else:
+            groups.append([plane])
+    level = [g for g in groups if mean_elevation_deg(T_world_camera, g[0][0]) <= MAX_MEAN_ELEVATION_DEG]
+    return max(level, key=lambda g: sum(p[2] for p in g)) if level else []
 
 
 def estimate_up_from_frames(frames: Sequence, **kwargs) -> np.ndarray:
