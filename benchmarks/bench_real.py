@@ -3,6 +3,7 @@ counted in their READMEs, ids kept on ``--revisit``, a reversed-order pass, fram
 
     python benchmarks/bench_real.py [--model ../shared/models/yolov8n-seg_fp32.onnx]
                                     [--recordings tum-fr1-rpy,dining-room] [--set key=value]...
+                                    [--keep DIR]
 
 Each recording is mapped three times: forward (timed: detection + mapping, one thread), forward
 again as a ``--revisit`` of the same map, and in reverse frame order into a new map. The detector
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -130,6 +132,8 @@ def main():
     ap.add_argument("--model", default=str(SHARED / "models" / "yolov8n-seg_fp32.onnx"))
     ap.add_argument("--recordings", default="tum-fr1-rpy,dining-room")
     ap.add_argument("--set", dest="sets", action="append", default=[])
+    ap.add_argument("--keep", metavar="DIR", help="write the maps here (NAME.h5 after the revisit, "
+                    "NAME-session1.h5, NAME-reversed.h5) to draw or query them")
     args = ap.parse_args()
     if not Path(args.model).is_file():
         sys.exit(f"bench_real: {args.model}: model not found (needs ../shared)")
@@ -145,10 +149,16 @@ def main():
             s = ingest([path], m, load_config(None, sets))
             wall, cpu = time.perf_counter() - t0, time.process_time() - c0
             first, ids1 = census(m)
+            if args.keep:
+                Path(args.keep).mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(m, Path(args.keep) / f"{name}-session1.h5")
             ingest([path], m, load_config(None, sets), revisit=True)
             second, ids2 = census(m)
             ingest([path], m_rev, load_config(None, sets), reader="reversed")
             rev, _ = census(m_rev)
+            if args.keep:
+                shutil.copyfile(m, Path(args.keep) / f"{name}.h5")
+                shutil.copyfile(m_rev, Path(args.keep) / f"{name}-reversed.h5")
             classes = sorted(set(first) | set(second) | set(rev) | set(TRUTH.get(name, {})))
             print(f"\n{name}: {s.frames_done} frames, {s.frames_done / wall:.1f} frames/s "
                   f"({1000 * cpu / max(s.frames_done, 1):.0f} ms CPU per frame, detection included, one thread)")
