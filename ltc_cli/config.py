@@ -11,7 +11,8 @@ its own effective copy (:func:`settings_from`) rather than editing the one it wa
 
 Merging: a section of fixed keys (``modeling``) is merged key by key. A free mapping (per-class
 tables such as ``modeling.class_depth``, the detector's ``options``) is replaced whole by a file, so
-``{}`` in a file empties it, while each ``--set`` adds or replaces one key of it.
+``{}`` in a file empties it, while each ``--set`` adds or replaces one key of it (``--set
+modeling.class_depth={}`` empties it too: adding nothing would leave a user's "off" silently on).
 """
 
 from __future__ import annotations
@@ -119,7 +120,7 @@ def _merge(base: dict, update: dict, node: dict | None, origin: str, replace: bo
             if "properties" in sub:  # a section of fixed keys: merge key by key
                 _merge(current, value, sub, origin, replace, path, origins)
                 continue
-            if not replace:  # a free mapping given by --set: add its keys
+            if not replace and value:  # a free mapping given by --set: add its keys (``{}`` empties it)
                 base[key] = {**current, **copy.deepcopy(value)}
                 continue
         base[key] = copy.deepcopy(value)

@@ -33,6 +33,10 @@ def test_mapping_settings(tmp_path):
     assert load_config(f)["modeling"]["class_depth"] == {}  # a file replaces the table whole
     cfg = load_config(None, ["detector.options.model=x.onnx", "detector.options.score_threshold=0.3"])
     assert cfg["detector"]["options"] == {"model": "x.onnx", "score_threshold": 0.3}  # --set adds keys
+    # ... and --set TABLE={} empties the table (it used to add nothing, so the default stayed on).
+    cfg = load_config(None, ["modeling.class_depth={}", "modeling.taller_than={}"])
+    assert cfg["modeling"]["class_depth"] == {} and cfg["modeling"]["taller_than"] == {}
+    assert load_config(None, ["modeling.class_depth={tv: 0.2}"])["modeling"]["class_depth"]["chair"] == 0.5
 
 
 @pytest.mark.parametrize("item, message", [

@@ -61,14 +61,14 @@ def test_learnt_rate_after_a_known_sequence_of_detections_and_clear_misses():
         mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
     t = mapper.map.objects
     assert (t.n_clear[row], t.n_nondet[row], t.status[row]) == (6, 2, ACTIVE)
-    assert (mapper.rate_views[0], mapper.rate_hits[0]) == (6, 4)
+    assert (mapper.rates.views[0], mapper.rates.hits[0]) == (6, 4)
     # By hand: p = (4 + 20 * 0.5) / (6 + 20) = 14 / 26; v_Other = 0.5 * p * 0.6 / (1 - p) = 0.35.
     p = 14 / 26
-    assert learnt_detection_rate(mapper.rate_views, mapper.rate_hits, 0.5, 20)[0] == pytest.approx(p)
-    assert mapper.non_detection_vectors()[0, -1] == pytest.approx(0.5 * p * 0.6 / (1 - p))
+    assert learnt_detection_rate(mapper.rates.views, mapper.rates.hits, 0.5, 20)[0] == pytest.approx(p)
+    assert mapper.rates.vectors()[0, -1] == pytest.approx(0.5 * p * 0.6 / (1 - p))
     # The counts equal a recount over the table (what a resumed ingest starts from).
     again = Mapper(mapper.map, cfg, mapper.metric, mapper.policy, session=0)
-    assert (again.rate_views[0], again.rate_hits[0]) == (6, 4)
+    assert (again.rates.views[0], again.rates.hits[0]) == (6, 4)
 
 
 def test_v_other_from_rate_by_hand():
@@ -89,7 +89,7 @@ def test_seen_50_times_survives_5_clear_misses_at_rate_one_half_and_goes_after_e
     add_object(mapper, [40.0, 40.0, 0.5], [0.5, 0.5, 1.0], chair_vector(), n_det=500, n_clear=1000, n_nondet=500)
     row = add_object(mapper, *CHAIR_BOX, chair_vector(0.9), n_det=50)
     mapper = Mapper(mapper.map, cfg, mapper.metric, mapper.policy)  # counts the map as it opens it
-    assert (mapper.rate_views[0], mapper.rate_hits[0]) == (1000, 500)
+    assert (mapper.rates.views[0], mapper.rates.hits[0]) == (1000, 500)
     empty, _ = render([], wall_x=4.0)
     s = chair_vector(0.9)
     views, hits = 1000, 500

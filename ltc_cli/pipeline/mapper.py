@@ -25,10 +25,10 @@ from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, stale_side, stale_weight,
 )
 from ltc_cli.pipeline.maintenance import (
-    absent_detail, absent_in_session, camera_view, class_hit_counts, found_again, in_view, learnt_detection_rate,
-    new_view, non_detection_vectors, other_leads, other_leads_detail, seen_empty, tentative, unconfirmed,
-    unconfirmed_detail, v_other_from_detection_rate, view_counts,
+    absent_detail, absent_in_session, camera_view, found_again, in_view, new_view, non_detection_vectors, other_leads,
+    other_leads_detail, seen_empty, tentative, unconfirmed, unconfirmed_detail, view_counts,
 )
+from ltc_cli.pipeline.rates import DetectionRates
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy
 from ltc_cli.settings import Settings
@@ -61,59 +61,11 @@ class Mapper:
         active = smap.active_rows()
         self.index.build(active, t.center[active], t.size[active])
         self.flags = ClassFlags.from_settings(smap.classes, config)
-        m_cfg = config["maintenance"]
-        self.confirmed = max(1, int(m_cfg["min_detections"]))
-        rows = smap.active_rows()
-        rows = rows[t.n_det[rows] >= self.confirmed]
-        self.rate_views, self.rate_hits = class_hit_counts(
-            top_class(t.scores[rows]), np.maximum(t.n_clear[rows], t.n_nondet[rows]), t.n_nondet[rows],
-            len(smap.classes))
-        self._touched: dict = {}
-        self._fixed_vectors = None
-        self._fixed_vectors = self.non_detection_vectors()
-        v_empty = m_cfg["v_other_seen_empty"]
+        self.rates = DetectionRates(smap, config["maintenance"])
+        v_empty = config["maintenance"]["v_other_seen_empty"]
         self._empty_vectors = non_detection_vectors(smap.classes, v_empty, None) if v_empty is not None else None
         # A policy without a removal rule of its own keeps the paper's: removed once `other` leads.
         self._removals = getattr(policy, "removals", other_leads)
-
-    # -- the learnt detection rate -----------------------------------------------------------
-    def _contribution(self, row: int):
-        """(class, clear views, hits) that ``row`` adds to the per-class counts, or None."""
-        t = self.map.objects
-        if t.status[row] != ACTIVE or t.n_det[row] < self.confirmed:
-            return None
-        views = max(int(t.n_clear[row]), int(t.n_nondet[row]))
-        return int(top_class(t.scores[row])), views, views - int(t.n_nondet[row])
-
-    def _touch(self, row: int) -> None:
-        """Remember what ``row`` counted for before it changes (see :meth:`_settle`)."""
-        if row not in self._touched:
-            self._touched[row] = self._contribution(row) if row < self.map.objects.n else None
-
-    def _settle(self) -> None:
-        """Apply the changes of the touched rows to the per-class counts, so the counts always equal
-        a recount over the table (a resumed ingest learns exactly what an uninterrupted one does)."""
-        for row, before in self._touched.items():
-            for sign, c in ((-1, before), (1, self._contribution(row))):
-                if c is not None:
-                    self.rate_views[c[0]] += sign * c[1]
-                    self.rate_hits[c[0]] += sign * c[2]
-        self._touched.clear()
-
-    def non_detection_vectors(self) -> np.ndarray:
-        """Eq. 4 vectors (C, C+1) by the object's class: v_Other from a calibration where it gives
-        one, else from the detection rate learnt on this map (``maintenance.learn_detection_rate``),
-        else the configured v_Other."""
-        m_cfg = self.cfg["maintenance"]
-        if not m_cfg["learn_detection_rate"] and self._fixed_vectors is not None:
-            return self._fixed_vectors  # nothing learnt: the same every frame
-        v = np.full(len(self.map.classes), float(m_cfg["v_other"]))
-        if m_cfg["learn_detection_rate"]:
-            rate = learnt_detection_rate(self.rate_views, self.rate_hits, m_cfg["rate_prior"], m_cfg["rate_prior_views"])
-            v = v_other_from_detection_rate(rate, m_cfg["rate_score"], m_cfg["rate_margin"])
-        given = m_cfg["v_other_per_class"] or {}
-        v = np.array([float(given.get(c, vc)) for c, vc in zip(self.map.classes, v)])
-        return non_detection_vectors(self.map.classes, 0.0, dict(zip(self.map.classes, v)))
 
     # -- bookkeeping -------------------------------------------------------------------------
     def _weight(self, row: int) -> float:
@@ -202,11 +154,11 @@ class Mapper:
             matched = np.array([r in matched_rows for r in rows])
             missed, clear, empty, clear_absent = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range,
                                                               frame_index)
-            vectors = self.non_detection_vectors()
+            vectors = self.rates.vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
             for row in rows[clear]:
-                self._touch(int(row))
+                self.rates.touch(int(row))
                 cols["n_clear"][row] += 1
             # The absence rule's counts; clear_session holds session + 1 (0: none yet, old maps).
             fresh = rows[clear_absent & (cols["clear_session"][rows] != self.session + 1)]
@@ -221,7 +173,7 @@ class Mapper:
 
         if self.cfg["association"]["merge"]:
             res.merged = self._merge_in_view(frame_index, frame_key, T_camera_map, intr, depth_range[1])
-        self._settle()
+        self.rates.settle()
         t4 = clock()
         res.timings = {"modeling": t1 - t0, "association": t_assoc, "integration": t2 - t1 - t_assoc,
                        "maintenance": t3 - t2, "merge": t4 - t3}
@@ -306,12 +258,12 @@ class Mapper:
         for row in rows:
             self._remove(row, frame_index, frame_key,
                          unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share))
-        self._settle()
+        self.rates.settle()
         return len(rows) + gone
 
     # -- applying decisions ------------------------------------------------------------------
     def _remove(self, row, frame_index, frame_key, detail) -> None:
-        self._touch(int(row))
+        self.rates.touch(int(row))
         self._set_status(int(row), REMOVED)
         self._log(frame_index, frame_key, "removed", row + 1, detail=detail)
 
@@ -327,7 +279,7 @@ class Mapper:
 
     def _create(self, box: Box, s_det, frame_index, frame_key) -> int:
         t = self.map.objects
-        self._touched[t.n] = None
+        self.rates.touch(t.n)
         row = t.append(
             center=box.center, yaw=box.yaw, size=box.size, visible=box.visible, defined=box.defined,
             scores=s_det, n_det=1, n_nondet=0, status=ACTIVE, first_session=self.session,
@@ -340,7 +292,7 @@ class Mapper:
     def _integrate(self, row, det_box: Box, s_det, frame_index, frame_key) -> None:
         """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3."""
         t = self.map.objects
-        self._touch(row)
+        self.rates.touch(row)
         i_cfg = self.cfg["integration"]
         obj = t.box(row)
         if self._foreign(s_det, t.scores[row], det_box, obj):
@@ -366,7 +318,7 @@ class Mapper:
         """Fuse a non-detection into ``row`` (eqs. 3-4, ``vectors`` (C, C+1) by class); remove it
         when the policy says so."""
         t = self.map.objects
-        self._touch(row)
+        self.rates.touch(row)
         s = fuse_scores(vectors[int(top_class(t.scores[row]))], t.scores[row], self._weight(row))
         t.cols["scores"][row] = s
         t.cols["n_nondet"][row] += 1
@@ -426,8 +378,8 @@ class Mapper:
 
     def _absorb(self, keep, drop, frame_index, frame_key) -> None:
         t = self.map.objects
-        self._touch(keep)
-        self._touch(drop)
+        self.rates.touch(keep)
+        self.rates.touch(drop)
         box, scores = self._merged(min(keep, drop), max(keep, drop))
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
