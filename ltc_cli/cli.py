@@ -236,6 +236,10 @@ def info(map_path, fmt):
     click.echo(f"objects      {o['active']} active, {o['removed']} removed, {o['merged']} merged")
     for name, n in doc["per_class"].items():
         click.echo(f"  {name:<18} {n}")
+    up = np.asarray(smap.up_rotation)[2]  # the recording's direction that the map made +z
+    tilt = float(np.degrees(np.arccos(np.clip(up[2], -1.0, 1.0))))
+    click.echo(f"up           map +z = the recording's ({up[0]:.3f}, {up[1]:.3f}, {up[2]:.3f}), "
+               f"{tilt:.1f} deg from its +z")
     click.echo(f"frames       {doc['frames']} ingested; {_plural(doc['events'], 'event')} logged")
     click.echo(f"sessions     {len(smap.sessions)}")
     for i, s in enumerate(doc["sessions"]):

@@ -88,6 +88,20 @@ def test_two_laps_two_sessions_removes_the_absent_object(tmp_path):
     assert r.output.count("v_other=learnt per class") == 2
 
 
+def test_info_shows_the_up_axis_the_map_applied(tmp_path):
+    from ltc_cli.map.store import save_map
+
+    lap1 = write_recording(tmp_path / "lap1")
+    m = tmp_path / "map.h5"
+    assert run("ingest", lap1, "--map", m).exit_code == 0
+    assert "map +z = the recording's (0.000, 0.000, 1.000), 0.0 deg from its +z" in run("info", m).output
+    # A y-down world turned z-up: R_up maps the recording's -y onto +z (rotation about x by -90 deg).
+    smap = load_map(m)
+    smap.up_rotation = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
+    save_map(smap, m)
+    assert "map +z = the recording's (0.000, -1.000, 0.000), 90.0 deg from its +z" in run("info", m).output
+
+
 def test_info_shows_a_fixed_v_other_when_nothing_is_learnt(tmp_path):
     lap1 = write_recording(tmp_path / "lap1")
     m = tmp_path / "map.h5"
