@@ -102,6 +102,24 @@ def test_info_shows_the_up_axis_the_map_applied(tmp_path):
     assert "map +z = the recording's (0.000, -1.000, 0.000), 90.0 deg from its +z" in run("info", m).output
 
 
+def test_an_up_axis_resting_on_the_cameras_alone_is_warned_about(tmp_path):
+    """The test room shows a wall and box faces, no floor: with ``up: estimate`` the estimate can only
+    be the cameras' mean up, and the ingest says so (once, naming the recording)."""
+    rec = write_recording(tmp_path / "lap1")
+    meta = yaml.safe_load((rec / "recording.yaml").read_text())
+    (rec / "recording.yaml").write_text(yaml.safe_dump({**meta, "up": "estimate"}))
+    r = run("ingest", rec, "--map", tmp_path / "m.h5")
+    assert r.exit_code == 0
+    assert r.output.count("no floor or table plane in the sampled frames") == 1
+    assert f"{rec}: no floor" in r.output
+    # ... and the cameras' guess is what it used (they look level in a z-up world): planes slicing
+    # through the wall and the box faces 50-58 degrees off were not taken for a floor.
+    np.testing.assert_allclose(load_map(tmp_path / "m.h5").up_rotation, np.eye(3), atol=1e-9)
+    # Given (the default of this layout: z-up), nothing is estimated and nothing is said.
+    r = run("ingest", write_recording(tmp_path / "lap2"), "--map", tmp_path / "m2.h5")
+    assert r.exit_code == 0 and "no floor or table plane" not in r.output
+
+
 def test_info_shows_a_fixed_v_other_when_nothing_is_learnt(tmp_path):
     lap1 = write_recording(tmp_path / "lap1")
     m = tmp_path / "map.h5"

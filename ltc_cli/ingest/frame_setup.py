@@ -40,6 +40,11 @@ PARALLEL_DEG = 10.0
 # Under the true up the cameras' mean elevation (of their optical axes) is at most level; a
 # candidate under which they look up by more than this on average is a wall.
 MAX_MEAN_ELEVATION_DEG = 20.0
+# Beyond the old 30 degree cone a direction must be borne by this share of the sampled points: a
+# desk a camera is pitched down at fills much of its view (tum-fr1-rpy: 65 %), while planes that
+# merely slice through walls and box faces do not (a room without a floor: 12 % at 50-58 degrees).
+WIDE_CONE_DEG = 30.0
+WIDE_MIN_SHARE = 0.2
 # Point-to-plane distance (m) that counts as "on the plane": Kinect-class depth noise at 3-4 m is a
 # few centimetres, so tighter thresholds split the floor into slivers.
 INLIER_DISTANCE_M = 0.03
@@ -211,6 +216,9 @@ def estimate_up(
     group = horizontal_planes(planes, frames_T_world_camera)
     if not group:
         return guess
+    if float(group[0][0] @ guess) < np.cos(np.radians(WIDE_CONE_DEG)) and \
+            sum(p[2] for p in group) < WIDE_MIN_SHARE * len(points):
+        return guess
     largest = max(s for _, _, s in group)
     candidates = [p for p in group if p[2] >= 0.25 * largest]
     # Lowest: the offset d = n . p of each plane along its own normal, all of them within
@@ -313,12 +321,14 @@ def _sample_frames(rec: Recording, n: int) -> list:
     return out
 
 
-def frame_setup_for(rec: Recording, sample_frames: int = 5):
+def frame_setup_for(rec: Recording, sample_frames: int = 5, warn=None):
     """(R_up (3, 3), floor_z or None) of a recording.
 
     R_up turns the recording's world into the z-up map frame (given, or estimated from the
     cameras and the floor when ``up: estimate``); floor_z is the floor's height in the map frame,
-    from the depth of a few frames (None when no floor is in view).
+    from the depth of a few frames (None when no floor is in view). ``warn(message)`` is told when
+    an estimate found no horizontal plane and rests on the cameras alone (a map tilted by the
+    cameras' mean pitch is then likely).
     """
     frames = _sample_frames(rec, sample_frames)
     if rec.up is None:
@@ -326,9 +336,13 @@ def frame_setup_for(rec: Recording, sample_frames: int = 5):
     elif isinstance(rec.up, str) and rec.up == "estimate":
         if not frames:
             raise RecordingError("cannot estimate the up axis: no readable frame", rec.path)
-        up = estimate_up(np.array([f.T_world_camera for f in frames]),
-                                [(f.depth_m, f.T_world_camera) for f in frames], rec.intrinsics)
+        poses = np.array([f.T_world_camera for f in frames])
+        up = estimate_up(poses, [(f.depth_m, f.T_world_camera) for f in frames], rec.intrinsics)
         R_up = rotation_between(up, [0.0, 0.0, 1.0])
+        if warn is not None and np.allclose(up, cameras_up(poses)):
+            warn(f"{rec.path}: no floor or table plane in the sampled frames: the up axis rests on the "
+                 f"cameras' mean pose, which leans by their mean pitch; if the map looks tilted ('ltc info' "
+                 f"shows the axis), give it (-r up=z, or up: in recording.yaml)")
     else:
         R_up = rotation_between(np.asarray(rec.up, dtype=np.float64), [0.0, 0.0, 1.0])
     zs = []

@@ -174,7 +174,7 @@ def ingest(
     settings = settings_from(config, *([calibration_settings(calibration)] if calibration is not None else []))
     # Everything that can be checked before the map is touched is checked first.
     plan = _plan([open_recording(p, reader, reader_options) for p in recording_paths], settings, calibration,
-                 revisit)
+                 revisit, opts.warn)
     plan.reader, plan.reader_options = reader, reader_options
 
     lock = MapLock(map_path).acquire()
@@ -196,7 +196,7 @@ def ingest(
     return summary
 
 
-def _plan(recordings: list[Recording], settings: dict, calibration, revisit: bool) -> Plan:
+def _plan(recordings: list[Recording], settings: dict, calibration, revisit: bool, warn=None) -> Plan:
     """Plugins and per-recording set-up (up axis, floor, depth range), before the map is opened."""
     metric = plugins.get("metrics", settings["association"]["metric"]).factory(settings["association"])
     policy = plugins.get("policies", settings["maintenance"]["policy"]).factory(settings["maintenance"])
@@ -205,7 +205,7 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
     m_cfg = settings["modeling"]
     setups = []
     for rec, det in zip(recordings, detectors):
-        R_up, floor_z = frame_setup_for(rec)
+        R_up, floor_z = frame_setup_for(rec, warn=warn)
         lo, hi = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
         depth_range = (max(lo, m_cfg["min_depth"]), min(hi, m_cfg["max_depth"]))
         setups.append(RecordingSetup(rec, det, R_up, floor_z, depth_range))
