@@ -82,6 +82,9 @@ class MaintenanceSettings(TypedDict):
     min_visible_share: float
     min_detections: int
     min_detection_share: Optional[float]
+    min_detection_views: Optional[int]
+    confirm_min_move: Optional[float]
+    confirm_min_turn: Optional[float]
     tentative_until_end: bool
     absent_after_views: Optional[int]
     absent_quiet_sessions: Optional[int]

@@ -323,13 +323,15 @@ def test_three_thousand_instances_in_one_frame(tmp_path):
     rec = many_instances(tmp_path / "rec", 3000)
     det_file = rec / "detections" / "000000.json"
     m = tmp_path / "all.h5"
-    r = run("ingest", rec, "--map", m, "--set", "modeling.max_detections=5000")
+    # One frame is one view: the distinct-views confirmation would leave nothing to look at.
+    one_view = ("--set", "maintenance.min_detection_views=null")
+    r = run("ingest", rec, "--map", m, "--set", "modeling.max_detections=5000", *one_view)
     assert r.exit_code == 0 and r.stderr.strip() == "", r.output
     assert "1 frame ingested" in r.stdout
     assert len(load_map(m).active_rows()) > 0
     # Over the cap: a warning naming the file, and the most confident detections used.
     capped = tmp_path / "capped.h5"
-    r = run("ingest", rec, "--map", capped, "--set", "modeling.max_detections=100")
+    r = run("ingest", rec, "--map", capped, "--set", "modeling.max_detections=100", *one_view)
     assert r.exit_code == 0, r.output
     warnings = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert warnings == [f"warning: {det_file}: 3000 detections in one frame, more than modeling.max_detections "

@@ -21,7 +21,8 @@ def top_class(scores: np.ndarray) -> np.ndarray:
 ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 # Columns added after format 1: a map written before them reads them as zeros.
-ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session", "clear_since_det"})
+ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session", "clear_since_det",
+                           "det_view", "det_views"})
 
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
@@ -50,6 +51,10 @@ COLUMNS = {
     # Clear views without a detection since the object's last detection, over sessions
     # (maintenance.absent_quiet_sessions).
     "clear_since_det": ((), np.int64),
+    # Camera position and forward axis (6) at the object's last detection from a new view, and how
+    # many such distinct views detected it (maintenance.min_detection_views).
+    "det_view": ((6,), np.float64),
+    "det_views": ((), np.int64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),
     "first_frame": ((), np.int64),

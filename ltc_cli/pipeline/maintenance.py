@@ -324,12 +324,16 @@ def tentative(first_session: int, n_det: int, session: int, min_detections: int)
     return bool(first_session == session and n_det < min_detections)
 
 
-def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min_share: float | None) -> np.ndarray:
+def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min_share: float | None,
+                views: np.ndarray | None = None, min_views: int | None = None) -> np.ndarray:
     """(M,) bool: objects too few detections confirm: fewer than ``min_detections``, or fewer than
-    ``min_share`` of the frames in which they were clearly visible (None: no share)."""
+    ``min_share`` of the frames in which they were clearly visible (None: no share), or detected
+    from fewer than ``min_views`` distinct views (M,) (None: any)."""
     weak = n_det < min_detections
     if min_share is not None:
         weak |= n_det < min_share * n_clear
+    if min_views is not None and views is not None:
+        weak |= views < min_views
     return weak
 
 
@@ -385,10 +389,12 @@ def absent_detail(in_session: int, since_detection: int) -> str:
             "last detection), detected in none")
 
 
-def unconfirmed_detail(n_det: int, n_clear: int, min_detections: int, min_share: float | None) -> str:
+def unconfirmed_detail(n_det: int, n_clear: int, min_detections: int, min_share: float | None,
+                       views: int = 0, min_views: int | None = None) -> str:
     """The event log's reason for a removal as unconfirmed (starts "unconfirmed:")."""
     return (f"unconfirmed: {plural(int(n_det), 'detection')} in {int(n_clear)} clear views in the session that "
-            f"created it (needs {min_detections}" + (f" and {min_share:.0%} of its clear views)" if min_share else ")"))
+            f"created it (needs {min_detections}" + (f" and {min_share:.0%} of its clear views" if min_share else "")
+            + (f"; detected from {plural(int(views), 'distinct view')}, needs {min_views})" if min_views else ")"))
 
 
 def other_leads_detail(scores: np.ndarray, classes: list[str], n_nondet: int, n_det: int) -> str:

@@ -62,6 +62,7 @@ class Mapper:
         self.index.build(active, t.center[active], t.size[active])
         self.flags = ClassFlags.from_settings(smap.classes, config)
         self.rates = DetectionRates(smap, config["maintenance"])
+        self._view = np.zeros(6)  # the camera's view of the frame being mapped (camera_view)
         v_empty = config["maintenance"]["v_other_seen_empty"]
         self._empty_vectors = non_detection_vectors(smap.classes, v_empty, None) if v_empty is not None else None
         # A policy without a removal rule of its own keeps the paper's: removed once `other` leads.
@@ -114,6 +115,7 @@ class Mapper:
         """
         clock = clock or time.perf_counter
         T_camera_map = invert_pose(T_map_camera)
+        self._view = camera_view(T_map_camera)
 
         t0 = clock()
         if stage1 is None:
@@ -243,7 +245,8 @@ class Mapper:
         """
         t = self.map.objects
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
-        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share)]
+        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, t.det_views[rows],
+                                self.cfg["maintenance"]["min_detection_views"])]
         m_cfg = self.cfg["maintenance"]
         absent = m_cfg["absent_after_views"]
         gone = 0
@@ -257,7 +260,8 @@ class Mapper:
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
             self._remove(row, frame_index, frame_key,
-                         unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share))
+                         unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share,
+                                            t.det_views[row], self.cfg["maintenance"]["min_detection_views"]))
         self.rates.settle()
         return len(rows) + gone
 
@@ -277,6 +281,14 @@ class Mapper:
         cols["last_frame"][row] = frame_index
         cols["clear_since_det"][row] = 0
 
+    def _count_view(self, row: int) -> None:
+        """A detection of ``row`` from a new view (confirm_min_move / confirm_min_turn since the
+        last counted one) adds one to its distinct views of detection."""
+        m_cfg, cols = self.cfg["maintenance"], self.map.objects.cols
+        if new_view(cols["det_view"][row:row + 1], self._view, m_cfg["confirm_min_move"], m_cfg["confirm_min_turn"])[0]:
+            cols["det_views"][row] += 1
+            cols["det_view"][row] = self._view
+
     def _create(self, box: Box, s_det, frame_index, frame_key) -> int:
         t = self.map.objects
         self.rates.touch(t.n)
@@ -286,6 +298,7 @@ class Mapper:
             first_frame=frame_index, last_session=self.session, last_frame=frame_index,
         )
         self.index.insert(row, box.center, box.size)
+        self._count_view(row)
         self._log(frame_index, frame_key, "created", row + 1)
         return row
 
@@ -306,6 +319,7 @@ class Mapper:
         t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], w)  # eq. 3
         t.cols["n_det"][row] += 1
         self._seen(row, frame_index)
+        self._count_view(row)
         self.index.insert(row, new.center, new.size)
         self._log(frame_index, frame_key, "updated", row + 1)
 
@@ -385,6 +399,7 @@ class Mapper:
         t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet", "n_clear"):
             t.cols[col][keep] += t.cols[col][drop]
+        t.cols["det_views"][keep] = max(t.det_views[keep], t.det_views[drop])
         if (t.first_session[drop], t.first_frame[drop]) < (t.first_session[keep], t.first_frame[keep]):
             t.cols["first_session"][keep] = t.first_session[drop]
             t.cols["first_frame"][keep] = t.first_frame[drop]
