@@ -63,3 +63,5 @@ def test_unconfirmed_by_views_by_hand():
     views = np.array([1, 2, 2])
     np.testing.assert_array_equal(unconfirmed(n_det, n_clear, 2, 0.2, views, 2), [True, False, True])
     np.testing.assert_array_equal(unconfirmed(n_det, n_clear, 2, 0.2, views, None), [False, False, True])
+    # 0 views: an object made before views were counted (a map of an older ltc, its session resumed).
+    np.testing.assert_array_equal(unconfirmed(np.array([3]), np.array([3]), 2, 0.2, np.array([0]), 2), [False])

@@ -10,7 +10,6 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.camera import invert_pose, project, transform
 from ltc_cli.types import Intrinsics
-from ltc_cli.text import plural
 
 
 def in_view(boxes: Boxes, T_camera_map: np.ndarray, intr: Intrinsics, max_depth: float) -> np.ndarray:
@@ -328,12 +327,13 @@ def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min
                 views: np.ndarray | None = None, min_views: int | None = None) -> np.ndarray:
     """(M,) bool: objects too few detections confirm: fewer than ``min_detections``, or fewer than
     ``min_share`` of the frames in which they were clearly visible (None: no share), or detected
-    from fewer than ``min_views`` distinct views (M,) (None: any)."""
+    from fewer than ``min_views`` distinct views (M,) (None: any; 0 views: not counted)."""
     weak = n_det < min_detections
     if min_share is not None:
         weak |= n_det < min_share * n_clear
     if min_views is not None and views is not None:
-        weak |= views < min_views
+        # 0: made before ltc counted views (a session resumed after an upgrade): not judged so.
+        weak |= (views > 0) & (views < min_views)
     return weak
 
 
@@ -381,24 +381,3 @@ def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_sessio
         gone |= ((np.asarray(last_session) <= session - quiet_sessions)
                  & (np.asarray(clear_since_det) >= (views if quiet_views is None else quiet_views)))
     return quiet & gone
-
-
-def absent_detail(in_session: int, since_detection: int) -> str:
-    """The event log's reason for a removal by the absence rule (starts "other: clearly")."""
-    return (f"other: clearly visible in {int(in_session)} frames of this session ({int(since_detection)} since its "
-            "last detection), detected in none")
-
-
-def unconfirmed_detail(n_det: int, n_clear: int, min_detections: int, min_share: float | None,
-                       views: int = 0, min_views: int | None = None) -> str:
-    """The event log's reason for a removal as unconfirmed (starts "unconfirmed:")."""
-    return (f"unconfirmed: {plural(int(n_det), 'detection')} in {int(n_clear)} clear views in the session that "
-            f"created it (needs {min_detections}" + (f" and {min_share:.0%} of its clear views" if min_share else "")
-            + (f"; detected from {plural(int(views), 'distinct view')}, needs {min_views})" if min_views else ")"))
-
-
-def other_leads_detail(scores: np.ndarray, classes: list[str], n_nondet: int, n_det: int) -> str:
-    """The event log's reason for a removal by eq. 4 (starts "other")."""
-    top = int(np.asarray(scores)[:-1].argmax())
-    return (f"other {scores[-1]:.3f} > {classes[top]} {scores[top]:.3f} after "
-            f"{plural(int(n_nondet), 'non-detection')} and {plural(int(n_det), 'detection')}")

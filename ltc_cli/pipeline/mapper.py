@@ -25,9 +25,10 @@ from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, stale_side, stale_weight,
 )
 from ltc_cli.pipeline.maintenance import (
-    absent_detail, absent_in_session, camera_view, found_again, in_view, new_view, non_detection_vectors, other_leads,
-    other_leads_detail, seen_empty, tentative, unconfirmed, unconfirmed_detail, view_counts,
+    absent_in_session, camera_view, found_again, in_view, new_view, non_detection_vectors, other_leads, seen_empty,
+    tentative, unconfirmed, view_counts,
 )
+from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, unconfirmed_detail
 from ltc_cli.pipeline.rates import DetectionRates
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy

@@ -1,0 +1,29 @@
+"""The event log's words for why maintenance removed an object: one line each, read by people
+(`ltc query --removed`, `ltc changes`) and starting with a fixed word that tools match."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ltc_cli.text import plural
+
+
+def absent_detail(in_session: int, since_detection: int) -> str:
+    """The event log's reason for a removal by the absence rule (starts "other: clearly")."""
+    return (f"other: clearly visible in {int(in_session)} frames of this session ({int(since_detection)} since its "
+            "last detection), detected in none")
+
+
+def unconfirmed_detail(n_det: int, n_clear: int, min_detections: int, min_share: float | None,
+                       views: int = 0, min_views: int | None = None) -> str:
+    """The event log's reason for a removal as unconfirmed (starts "unconfirmed:")."""
+    return (f"unconfirmed: {plural(int(n_det), 'detection')} in {int(n_clear)} clear views in the session that "
+            f"created it (needs {min_detections}" + (f" and {min_share:.0%} of its clear views" if min_share else "")
+            + (f"; detected from {plural(int(views), 'distinct view')}, needs {min_views})" if min_views else ")"))
+
+
+def other_leads_detail(scores: np.ndarray, classes: list[str], n_nondet: int, n_det: int) -> str:
+    """The event log's reason for a removal by eq. 4 (starts "other")."""
+    top = int(np.asarray(scores)[:-1].argmax())
+    return (f"other {scores[-1]:.3f} > {classes[top]} {scores[top]:.3f} after "
+            f"{plural(int(n_nondet), 'non-detection')} and {plural(int(n_det), 'detection')}")
