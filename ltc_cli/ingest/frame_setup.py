@@ -188,7 +188,9 @@ def estimate_up(
     frames_T_world_camera: (N, 4, 4) camera-to-world poses; their mean -y axis is the first guess.
     depth_samples: optional list of ``(depth_m (H, W), T_world_camera (4, 4))`` (or triples with
         their own :class:`~ltc_cli.types.Intrinsics` third); when given, the guess is refined to the
-        normal of the floor: the lowest (along the guess) near-horizontal plane with enough support.
+        normal of the floor: the lowest well-supported plane of the horizontal direction
+        (:func:`horizontal_planes`; beyond WIDE_CONE_DEG from the guess it must hold WIDE_MIN_SHARE
+        of the points).
     intrinsics: the :class:`~ltc_cli.types.Intrinsics` of the depth samples (one for all, or a list
         aligned with them).
 
@@ -211,14 +213,14 @@ def estimate_up(
     planes = _ransac_planes(points, guess, rng, max_planes=8, iterations=300, min_support=min_support)
     if not planes:
         return guess
-    # A plane counts as a floor candidate only with a fair share of the largest plane's support, so a
-    # lone low step or rug edge does not win over the real floor.
     group = horizontal_planes(planes, frames_T_world_camera)
     if not group:
         return guess
     if float(group[0][0] @ guess) < np.cos(np.radians(WIDE_CONE_DEG)) and \
             sum(p[2] for p in group) < WIDE_MIN_SHARE * len(points):
         return guess
+    # A plane counts as a floor candidate only with a fair share of the largest plane's support, so a
+    # lone low step or rug edge does not win over the real floor.
     largest = max(s for _, _, s in group)
     candidates = [p for p in group if p[2] >= 0.25 * largest]
     # Lowest: the offset d = n . p of each plane along its own normal, all of them within

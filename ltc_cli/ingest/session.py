@@ -361,7 +361,9 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
         completes = summary.frames_done > 0 or (resumed and not summary.interrupted)
         k = plan.settings["maintenance"]["min_detections"]
         share = plan.settings["maintenance"]["min_detection_share"]
-        if not summary.interrupted and completes and (k > 1 or share or plan.settings["maintenance"]["absent_after_views"]):
+        m_cfg = plan.settings["maintenance"]
+        if not summary.interrupted and completes and (k > 1 or share or m_cfg["absent_after_views"]
+                                                      or m_cfg["min_detection_views"]):
             summary.removed += mapper.prune_unconfirmed(k, -1, "end of session", share)
     except BaseException as exc:  # commit what is done, then let the error go on
         error = exc

@@ -244,11 +244,10 @@ class Mapper:
         recording is seen again. Objects of earlier sessions are not touched. Returns how many were
         removed.
         """
-        t = self.map.objects
+        t, m_cfg = self.map.objects, self.cfg["maintenance"]
+        min_views = m_cfg["min_detection_views"]
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
-        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, t.det_views[rows],
-                                self.cfg["maintenance"]["min_detection_views"])]
-        m_cfg = self.cfg["maintenance"]
+        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, t.det_views[rows], min_views)]
         absent = m_cfg["absent_after_views"]
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
@@ -262,7 +261,7 @@ class Mapper:
         for row in rows:
             self._remove(row, frame_index, frame_key,
                          unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share,
-                                            t.det_views[row], self.cfg["maintenance"]["min_detection_views"]))
+                                            t.det_views[row], min_views))
         self.rates.settle()
         return len(rows) + gone
 
