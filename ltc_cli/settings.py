@@ -41,6 +41,7 @@ class AssociationSettings(TypedDict):
     metric: str
     threshold_same_class: float
     threshold_other_class: float
+    other_class_scale: Optional[float]
     min_visible_pairs: int
     containment: Optional[float]
     containment_other_class: Optional[float]

@@ -75,9 +75,25 @@ def half_diagonals(size: np.ndarray) -> np.ndarray:
     return np.linalg.norm(size, axis=1) / 2
 
 
-def thresholds_for(det_class: int, cand_classes: np.ndarray, same: float, other: float) -> np.ndarray:
-    """The match threshold (M,) per candidate: looser when the top classes agree."""
+def thresholds_for(det_class: int, cand_classes: np.ndarray, same: float, other: float,
+                   other_cap: np.ndarray | None = None) -> np.ndarray:
+    """The match threshold (M,) per candidate: looser when the top classes agree. ``other_cap`` (M,):
+    a tighter bound on the other-class threshold per candidate (:func:`other_class_caps`)."""
+    other = other if other_cap is None else np.minimum(other, other_cap)
     return np.where(cand_classes == det_class, same, other)
+
+
+def other_class_caps(det_size: np.ndarray, cand_size: np.ndarray, scale: float | None) -> np.ndarray | None:
+    """(M,) bounds on the other-class threshold: ``scale`` times the larger half diagonal of the
+    detection (size (3,)) and each candidate (sizes (M, 3)); None when ``scale`` is None.
+
+    One object under two labels gives two boxes at one place, apart by less than its own size; two
+    small objects of different classes side by side (a mug and a monitor's foot 0.2 m apart on
+    tum-fr1-rpy) are apart by about theirs, within the fixed 0.25 m of eq. 2's other-class threshold.
+    """
+    if scale is None:
+        return None
+    return scale * np.maximum(half_diagonals(np.atleast_2d(det_size))[0], half_diagonals(cand_size))
 
 
 def nearest_under_threshold(dist: np.ndarray, thr: np.ndarray) -> int:
@@ -183,7 +199,8 @@ def containing_candidate(inside: np.ndarray, same_class: np.ndarray, need_same: 
 
 def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other: float,
                     need_same: float | None, need_other: float | None,
-                    other_volume_ratio: float | None = None, reach: float | None = None) -> list[tuple[float, int, int]]:
+                    other_volume_ratio: float | None = None, reach: float | None = None,
+                    other_scale: float | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -219,7 +236,8 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             if rest.size == 0:
                 continue
         dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
-        close = dist <= thresholds_for(int(top[a]), top[rest], same, other)
+        close = dist <= thresholds_for(int(top[a]), top[rest], same, other,
+                                       other_class_caps(boxes.size[a], boxes.size[rest], other_scale))
         if need_same:
             close |= contained[a, rest]
         pairs.extend((float(dist[b]), a, int(rest[b])) for b in np.flatnonzero(close))
@@ -359,7 +377,8 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     overlap = a_cfg["containment"] is not None
     pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                             overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
-                            a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach)
+                            a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
+                            a_cfg["other_class_scale"])
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

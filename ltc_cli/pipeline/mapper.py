@@ -18,7 +18,8 @@ from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, greedy_merges,
-    half_diagonals, label_survivor, match_reach, merge_pairs, nearest_under_threshold, similar_volume, thresholds_for,
+    half_diagonals, label_survivor, match_reach, merge_pairs, nearest_under_threshold, other_class_caps, similar_volume,
+    thresholds_for,
     within_reach,
 )
 from ltc_cli.pipeline.integration import (
@@ -195,7 +196,8 @@ class Mapper:
                 return -1, False
         cand_classes = top_class(t.scores[rows])
         dist = self.metric.distance(det, t.boxes(rows))
-        thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"])
+        thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
+                             other_class_caps(det.size[0], t.size[rows], a_cfg["other_class_scale"]))
         best = nearest_under_threshold(dist, thr)
         if best >= 0:
             return int(rows[best]), False
