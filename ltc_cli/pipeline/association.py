@@ -228,6 +228,7 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
         other_ok = np.where(similar_volume(vol[:, None], vol[None, :], other_volume_ratio), need_other or np.inf, np.inf)
         need = np.where(top[:, None] == top[None, :], need_same, other_ok)
         contained = inside >= need
+    halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the other-class caps
     pairs = []
     for a in range(m - 1):
         rest = np.arange(a + 1, m)
@@ -236,8 +237,8 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             if rest.size == 0:
                 continue
         dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
-        close = dist <= thresholds_for(int(top[a]), top[rest], same, other,
-                                       other_class_caps(boxes.size[a], boxes.size[rest], other_scale))
+        caps = None if other_scale is None else other_scale * np.maximum(halves[a], halves[rest])  # other_class_caps
+        close = dist <= thresholds_for(int(top[a]), top[rest], same, other, caps)
         if need_same:
             close |= contained[a, rest]
         pairs.extend((float(dist[b]), a, int(rest[b])) for b in np.flatnonzero(close))

@@ -19,8 +19,7 @@ from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, Semanti
 from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, greedy_merges,
     half_diagonals, label_survivor, match_reach, merge_pairs, nearest_under_threshold, other_class_caps, similar_volume,
-    thresholds_for,
-    within_reach,
+    thresholds_for, within_reach,
 )
 from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, stale_side, stale_weight,
