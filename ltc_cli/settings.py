@@ -24,6 +24,7 @@ class ModelingSettings(TypedDict):
     picture_depth_noise: Optional[float]
     min_depth_share: Optional[float]
     clustering: str
+    stack_gap: Optional[float]
     eps: float
     min_samples: int
     min_extent: float

@@ -1,4 +1,5 @@
-"""Clustering of back-projected mask points: the largest DBSCAN cluster of each detection.
+"""Clustering of back-projected mask points: the largest DBSCAN cluster of each detection, with
+the clusters stacked on or under it (:func:`stacked_components`, ``modeling.stack_gap``).
 
 Exact DBSCAN (scikit-learn's semantics, on a KD-tree) is the reference; the default grid DBSCAN
 and voxel components are the fast equivalents (DESIGN.md 1.1, measured in docs/decisions.md).
@@ -17,6 +18,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+
+from ltc_cli.geometry.boxes import fit_box
 
 
 # Half of the 26-neighbourhood: each undirected voxel adjacency is found once.
@@ -219,8 +222,10 @@ def dbscan_labels(points_xyz: np.ndarray, eps: float, min_samples: int) -> np.nd
     return DBSCAN(eps=eps, min_samples=min_samples, algorithm="kd_tree").fit(points_xyz).labels_.astype(np.int64)
 
 
-def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
-    """For each group (detection), the indices of its largest cluster, or None if too small.
+def largest_clusters(points_xyz, group, eps, min_samples, method="voxel", stack_gap=None):
+    """For each group (detection), the indices of its largest cluster, or None if too small; with
+    ``stack_gap`` (metres), joined by the clusters that are parts of the same object
+    (:func:`stacked_components`).
 
     ``voxel``: voxel components over all groups at once, then components with fewer than
     min_samples points are noise. ``dbscan``: exact DBSCAN per group. Returns a list indexed by
@@ -234,8 +239,14 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
             idx = members(g)
             labels = dbscan_labels(points_xyz[idx], eps, min_samples)
             if (labels >= 0).any():
-                best = np.bincount(labels[labels >= 0]).argmax()
-                out[g] = idx[labels == best]
+                counts = np.bincount(labels[labels >= 0])
+                best = int(counts.argmax())
+                parts = [best]
+                if stack_gap is not None:
+                    inl = labels >= 0
+                    parts = stacked_components(points_xyz[idx][inl], labels[inl], np.zeros(len(counts), np.int64),
+                                               counts, min_samples, stack_gap, eps).get(best, [best])
+                out[g] = idx[np.isin(labels, parts)]
         return out
     if method == "grid":
         labels = grid_dbscan_labels(points_xyz, group, eps, min_samples)
@@ -254,9 +265,60 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel"):
     order = np.lexsort((-counts, comp_group))
     first = order[np.r_[True, comp_group[order][1:] != comp_group[order][:-1]]]
     members = _members(labels, len(counts))
+    stacked = None
+    if stack_gap is not None:
+        stacked = stacked_components(points_xyz[points_idx], labels, comp_group, counts, min_samples, stack_gap, eps)
     for comp in first:
         if counts[comp] >= min_samples:
-            out[int(comp_group[comp])] = points_idx[members(comp)]
+            parts = [comp] if stacked is None else stacked.get(int(comp), [comp])
+            out[int(comp_group[comp])] = np.sort(np.concatenate([points_idx[members(c)] for c in parts]))
+    return out
+
+
+def stacked_components(points_xyz, labels, comp_group, counts, min_samples, max_gap, margin=0.0) -> dict:
+    """{largest component: it and the components that are parts of the same object} for each
+    group with more than one component of at least min_samples points.
+
+    A mask can join what the points do not: a plant's pot and foliage when the thin stem gives no
+    depth, the far part of a table top beyond a gap in the readings. A component is such a part
+    when at least half of its points lie within ``margin`` metres (the clustering's eps) of the
+    footprint of the object so far (the minimum-area rectangle, on the XY plane, of the parts
+    kept) and the vertical gap between them is at most ``max_gap`` metres. A patch of wall or
+    floor that the mask bled onto lies beside the object or far below it, so the largest cluster
+    still sheds it. Parts join one at a time, the largest first, each against the footprint grown
+    by the ones before.
+    """
+    big = counts >= min_samples
+    if not big.any():
+        return {}
+    per_group = np.bincount(comp_group[big], minlength=int(comp_group.max()) + 1)
+    if not (per_group >= 2).any():
+        return {}
+    members = _members(labels, len(counts))
+    out = {}
+    for g in np.flatnonzero(per_group >= 2):
+        comps = np.flatnonzero(big & (comp_group == g))
+        comps = [int(c) for c in comps[np.argsort(-counts[comps], kind="stable")]]
+        kept = [comps[0]]
+        grew = True
+        while grew:
+            grew = False
+            pts = points_xyz[np.concatenate([members(c) for c in kept])]
+            center, yaw, size = fit_box(pts)
+            for c in comps:
+                if c in kept:
+                    continue
+                p = points_xyz[members(c)]
+                d = p[:, :2] - center[:2]
+                u = d[:, 0] * np.cos(yaw) + d[:, 1] * np.sin(yaw)
+                v = -d[:, 0] * np.sin(yaw) + d[:, 1] * np.cos(yaw)
+                inside = np.mean((np.abs(u) <= size[0] / 2 + margin) & (np.abs(v) <= size[1] / 2 + margin))
+                gap = max(p[:, 2].min() - pts[:, 2].max(), pts[:, 2].min() - p[:, 2].max())
+                if inside >= 0.5 and gap <= max_gap:
+                    kept.append(c)
+                    grew = True
+                    break  # the footprint grew: measure the rest against the new one
+        out[kept[0]] = kept
     return out
 
 

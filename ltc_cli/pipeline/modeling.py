@@ -328,7 +328,7 @@ def model_detections(
         return empty
     points = np.concatenate(pts_list)
     group = np.concatenate(groups)
-    clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"])
+    clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"], p.get("stack_gap"))
     centers, yaws, sizes, src, npts, gaps = [], [], [], [], [], []
     for g, idx in enumerate(clusters):
         if idx is None:
