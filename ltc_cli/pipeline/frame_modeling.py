@@ -18,13 +18,18 @@ from ltc_cli.pipeline.pictures import flat_on_wall
 from ltc_cli.types import Intrinsics
 
 
+#: taller_is value of a rule whose box goes to the detection's own next most likely class.
+NEXT = -2
+
+
 @dataclass(frozen=True)
 class ClassFlags:
     """What stage 1 needs to know about each class of the map (arrays (C+1,), ``other`` last).
 
     moving: never a map object (people, animals); grounded: stands on the floor; depth_prior: the
     typical depth of a one-view slab (NaN: none); max_height: the height a box of the class is
-    never taller than (inf: none), and taller_is: the class such a box is then (-1: none).
+    never taller than (inf: none), and taller_is: the class such a box is then (-1: none;
+    NEXT: the detection's own next most likely class).
     """
 
     moving: np.ndarray
@@ -40,12 +45,14 @@ class ClassFlags:
         priors = config["modeling"]["class_depth"] or {}
         pos = {c: i for i, c in enumerate(classes)}
         # A rule naming a class the map does not hold has nothing to act on.
-        tall = {c: r for c, r in (config["modeling"].get("taller_than") or {}).items() if c in pos and r["is"] in pos}
+        tall = {c: r for c, r in (config["modeling"].get("taller_than") or {}).items()
+                if c in pos and (r["is"] == "next" or r["is"] in pos)}
         return cls(np.array([c in moving for c in classes] + [False]),
                    np.array([c in floor for c in classes] + [False]),
                    np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]),
                    np.array([float(tall[c]["height"]) if c in tall else np.inf for c in classes] + [np.inf]),
-                   np.array([pos[tall[c]["is"]] if c in tall else -1 for c in classes] + [-1]))
+                   np.array([-1 if c not in tall else NEXT if tall[c]["is"] == "next" else pos[tall[c]["is"]]
+                             for c in classes] + [-1]))
 
 
 @dataclass
@@ -110,16 +117,27 @@ def relabel_too_tall(scores: list[np.ndarray], source: np.ndarray, heights: np.n
 
     source (M,): each box's detection in ``scores``; heights (M,): the boxes' z extents, metres;
     max_height, taller_is (C+1,): from :class:`ClassFlags`. A box can only be seen shorter than
-    its object (a partial view), never taller, so only the upper bound of a class is used.
+    its object (a partial view), never taller, so only the upper bound of a class is used. With
+    NEXT the score goes to the detection's next most likely class (``other`` excluded): a 0.8 m
+    "bottle" whose detector gave potted plant second is a plant; a detection with no second class
+    keeps its label (nothing says what else it is).
     """
     out = list(scores)
     for k, i in enumerate(np.asarray(source, dtype=int)):
         top = int(top_class(out[i]))
-        if heights[k] > max_height[top] and taller_is[top] >= 0:
-            v = np.array(out[i], dtype=np.float64)
-            v[taller_is[top]] += v[top]
-            v[top] = 0.0
-            out[i] = v
+        if not heights[k] > max_height[top] or taller_is[top] == -1:
+            continue
+        v = np.array(out[i], dtype=np.float64)
+        to = int(taller_is[top])
+        if to == NEXT:
+            rest = v[:-1].copy()
+            rest[top] = -1.0
+            to = int(np.argmax(rest))
+            if rest[to] <= 0:
+                continue
+        v[to] += v[top]
+        v[top] = 0.0
+        out[i] = v
     return out
 
 
