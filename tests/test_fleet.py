@@ -22,7 +22,7 @@ from ltc_cli.ingest.fleet import ingest_many
 from ltc_cli.ingest.remote import depth_pixels, pack_depth, unpack_depth
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
-from ltc_cli.pipeline.maintenance import ray_grid
+from ltc_cli.pipeline.visibility import ray_grid
 from ltc_cli.types import Intrinsics
 from tests.test_ingest import wait_for_file
 from tests.test_jobs import assert_same_map, corrupt_copy, run, summary_line

@@ -11,7 +11,8 @@ from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
 from ltc_cli.geometry.boxes import Box
 from ltc_cli.pipeline.integration import stale_side, stale_weight
-from ltc_cli.pipeline.maintenance import absent_in_session, pixel_counts
+from ltc_cli.pipeline.maintenance import absent_in_session
+from ltc_cli.pipeline.visibility import pixel_counts
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
 from tests.test_accuracy_rules import every_miss_counts

@@ -5,7 +5,8 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.camera import invert_pose
-from ltc_cli.pipeline.maintenance import in_view, visible_pixels
+from ltc_cli.pipeline.maintenance import in_view
+from ltc_cli.pipeline.visibility import visible_pixels
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
@@ -177,7 +178,7 @@ def test_pixel_counts_equal_every_ray_against_every_box():
     # pixel_counts casts only the rays near each box's image (speed, issue 11); the reference is the
     # dense slab test of every ray against every box, on random boxes around the camera: in front,
     # straddling the camera plane, behind, containing the camera, hiding each other.
-    from ltc_cli.pipeline.maintenance import box_entry_depths, pixel_counts, ray_grid
+    from ltc_cli.pipeline.visibility import box_entry_depths, pixel_counts, ray_grid
 
     rng = np.random.default_rng(3)
     for trial in range(40):

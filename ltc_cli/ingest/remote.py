@@ -26,7 +26,7 @@ from ltc_cli import plugins
 from ltc_cli.errors import FrameError, LtcError
 from ltc_cli.pipeline.classes import ClassMapper
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, in_map_classes, model_frame, most_confident
-from ltc_cli.pipeline.maintenance import ray_grid
+from ltc_cli.pipeline.visibility import ray_grid
 from ltc_cli.recordings.open import open_recording
 from ltc_cli.types import Frame, FrameWarning, Intrinsics
 
