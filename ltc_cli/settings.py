@@ -91,6 +91,9 @@ class MaintenanceSettings(TypedDict):
     absent_after_views: Optional[int]
     absent_quiet_sessions: Optional[int]
     absent_quiet_views: Optional[int]
+    absent_empty_views: Optional[int]
+    absent_empty_share: float
+    absent_empty_margin: float
     spare_frames: Optional[int]
     hidden_by_whole_box: Union[bool, str]
     hide_needs_depth: Union[bool, str]

@@ -5,6 +5,8 @@ Pure numpy. Section 3.4 of the paper; DESIGN.md 1.4.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ltc_cli.geometry.boxes import Boxes
@@ -36,21 +38,51 @@ def in_view(boxes: Boxes, T_camera_map: np.ndarray, intr: Intrinsics, max_depth:
     return front.any(axis=1) & (overlap | straddle) & (near | straddle)
 
 
+class ViewCounts(NamedTuple):
+    """What a frame's camera saw of each box in view, (M,) each: ``visible`` pixels, the ``needed``
+    pixels for a non-detection, the ``empty`` ones (seen beyond the box's far side), the visible
+    pixels for the absence rule (``visible_absent``) and of those the ones seen past the box's
+    middle (``through_absent``; None when the absence rule does not ask for them)."""
+
+    visible: np.ndarray
+    needed: np.ndarray
+    empty: np.ndarray
+    visible_absent: np.ndarray
+    through_absent: np.ndarray | None
+
+
 def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, intr: Intrinsics,
-                depth_range: tuple[float, float], m_cfg: dict):
-    """(visible, needed, empty, visible for the absence rule), each (M,) pixels, of boxes in view,
-    by the maintenance settings ``m_cfg``: :func:`pixel_counts` with its hiding rules
-    (``hidden_by_whole_box``: True for every count, "absence" for the absence rule's only;
-    ``hide_needs_depth``) and :func:`required_pixels` scaled from 640x480 to the image."""
+                depth_range: tuple[float, float], m_cfg: dict) -> ViewCounts:
+    """The :class:`ViewCounts` of boxes in view, by the maintenance settings ``m_cfg``:
+    :func:`pixel_counts` with its hiding rules (``hidden_by_whole_box``: True for every count,
+    "absence" for the absence rule's only; ``hide_needs_depth``; ``absent_empty_margin`` past the
+    middle when ``absent_empty_views`` is set) and :func:`required_pixels` scaled from 640x480."""
     whole = m_cfg["hidden_by_whole_box"]
-    vis_px, proj_px, empty_px, *vis_absent = pixel_counts(
+    through = m_cfg["absent_empty_views"] is not None
+    counts = pixel_counts(
         boxes, T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
         with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence",
-        hide_needs_depth=m_cfg["hide_needs_depth"])
+        hide_needs_depth=m_cfg["hide_needs_depth"], past_middle=m_cfg["absent_empty_margin"] if through else None)
+    vis_px, proj_px, empty_px = counts[:3]
     scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
     need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                            m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
-    return vis_px, need, empty_px, (vis_absent or [vis_px])[0]
+    vis_absent = counts[3] if whole == "absence" else vis_px
+    return ViewCounts(vis_px, need, empty_px, vis_absent, counts[-1] if through else None)
+
+
+def count_absence_views(cols: dict, rows: np.ndarray, clear_absent: np.ndarray, matched: np.ndarray,
+                        seen_through: np.ndarray, session: int) -> None:
+    """Add one frame's views to the absence rule's counts of the in-view ``rows`` (updates the
+    object columns ``cols`` in place): clear views in this session (``clear_session`` holds the
+    session + 1; 0: none yet, maps from before), clear views without a detection since the last
+    detection (``clear_since_det``), and of those the ones that saw through the box
+    (``empty_since_det``). clear_absent, matched, seen_through: (M,) bool over rows."""
+    fresh = rows[clear_absent & (cols["clear_session"][rows] != session + 1)]
+    cols["clear_session"][fresh], cols["clear_in_session"][fresh] = session + 1, 0
+    cols["clear_in_session"][rows[clear_absent]] += 1
+    cols["clear_since_det"][rows[clear_absent & ~matched]] += 1
+    cols["empty_since_det"][rows[clear_absent & ~matched & seen_through]] += 1
 
 
 def required_pixels(projected: np.ndarray, min_pixels: float, min_fraction, floor: float,
@@ -198,7 +230,8 @@ def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None
 def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_session: np.ndarray,
                       clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views: int,
                       clear_since_det: np.ndarray | None = None, quiet_sessions: int | None = None,
-                      quiet_views: int | None = None) -> np.ndarray:
+                      quiet_views: int | None = None, empty_since_det: np.ndarray | None = None,
+                      empty_views: int | None = None) -> np.ndarray:
     """(M,) bool: active objects of earlier sessions seen clearly in at least ``views`` frames of
     this session and detected in none: a whole visit's worth of views, not one unlucky frame
     (``clear_session`` holds the session of the clear views + 1, 0 for none yet).
@@ -209,9 +242,17 @@ def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_sessio
     (None: ``views``): a
     chair taken away whose old place each lap sees clearly only two or three times (the room's far
     corner) is as gone after two laps as one seen five times in one.
+
+    With ``empty_views`` (and ``empty_since_det``: those clear views without a detection that saw
+    through the box), the session's count removes only objects whose place the camera saw empty
+    in at least that many views: one pass of the detector's silence is not enough when the depth
+    still shows something there (a tv or a book missed for a whole pass, in a run of correlated
+    misses). Silence over ``quiet_sessions`` whole sessions stays enough.
     """
     quiet = np.asarray(active) & (np.asarray(first_session) < session) & (np.asarray(last_session) < session)
     gone = (np.asarray(clear_session) == session + 1) & (np.asarray(clear_in_session) >= views)
+    if empty_views is not None and empty_since_det is not None:
+        gone &= np.asarray(empty_since_det) >= empty_views
     if quiet_sessions is not None and clear_since_det is not None:
         gone |= ((np.asarray(last_session) <= session - quiet_sessions)
                  & (np.asarray(clear_since_det) >= (views if quiet_views is None else quiet_views)))

@@ -25,8 +25,8 @@ from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, stale_side, stale_weight,
 )
 from ltc_cli.pipeline.maintenance import (
-    absent_in_session, camera_view, found_again, in_view, new_view, non_detection_vectors, other_leads, seen_empty,
-    tentative, unconfirmed, view_counts,
+    absent_in_session, camera_view, count_absence_views, found_again, in_view, new_view, non_detection_vectors,
+    other_leads, seen_empty, tentative, unconfirmed, view_counts,
 )
 from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, unconfirmed_detail
 from ltc_cli.pipeline.rates import DetectionRates
@@ -155,19 +155,15 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty, clear_absent = self._missed(rows, matched, T_map_camera, depth_m, intr, depth_range,
-                                                              frame_index)
+            missed, clear, empty, clear_absent, through = self._missed(rows, matched, T_map_camera, depth_m, intr,
+                                                                       depth_range, frame_index)
             vectors = self.rates.vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
             for row in rows[clear]:
                 self.rates.touch(int(row))
                 cols["n_clear"][row] += 1
-            # The absence rule's counts; clear_session holds session + 1 (0: none yet, old maps).
-            fresh = rows[clear_absent & (cols["clear_session"][rows] != self.session + 1)]
-            cols["clear_session"][fresh], cols["clear_in_session"][fresh] = self.session + 1, 0
-            cols["clear_in_session"][rows[clear_absent]] += 1
-            cols["clear_since_det"][rows[clear_absent & ~matched]] += 1
+            count_absence_views(cols, rows, clear_absent, matched, through, self.session)
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
                 res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
@@ -213,13 +209,15 @@ class Mapper:
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
-        """(missed, clear, empty, clear for the absence rule), each (M,) bool over in-view rows: which
-        get a non-detection, as the maintenance policy decides; which were clearly visible (enough
-        pixels to say so); which of the missed ones the depth showed to be free space; and which
-        were clearly visible by ``hidden_by_whole_box`` ("absence": by the whole-box rule)."""
+        """(missed, clear, empty, clear for the absence rule, seen through for it), each (M,) bool over
+        in-view rows: which get a non-detection, as the maintenance policy decides; which were
+        clearly visible (enough pixels to say so); which of the missed ones the depth showed to be
+        free space; which were clearly visible by ``hidden_by_whole_box`` ("absence": by the
+        whole-box rule); and which of those the camera saw through (absent_empty_share of the
+        pixels past the box's middle)."""
         m_cfg = self.cfg["maintenance"]
-        vis_px, need, empty_px, vis_absent = view_counts(self.map.objects.boxes(rows), T_map_camera, depth_m, intr,
-                                                         depth_range, m_cfg)
+        vis_px, need, empty_px, vis_absent, through_px = view_counts(self.map.objects.boxes(rows), T_map_camera,
+                                                                     depth_m, intr, depth_range, m_cfg)
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
         if m_cfg["spare_frames"] is not None:
             t = self.map.objects
@@ -232,7 +230,9 @@ class Mapper:
             t, view = self.map.objects, camera_view(T_map_camera)
             missed &= empty | new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
             t.cols["nondet_view"][rows[missed]] = view
-        return missed, vis_px >= need, empty, vis_absent >= need
+        through = seen_empty(vis_absent, through_px, m_cfg["absent_empty_share"]) if through_px is not None \
+            else np.zeros(len(rows), dtype=bool)
+        return missed, vis_px >= need, empty, vis_absent >= need, through
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
                           min_share: float | None = None) -> int:
@@ -255,7 +255,8 @@ class Mapper:
         if absent is not None and getattr(self.policy, "removes", True):
             old = np.flatnonzero(absent_in_session(
                 t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
-                absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"]))
+                absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"],
+                t.empty_since_det, m_cfg["absent_empty_views"]))
             for row in old:
                 self._remove(row, frame_index, frame_key, absent_detail(t.clear_in_session[row], t.clear_since_det[row]))
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
@@ -281,6 +282,7 @@ class Mapper:
         cols["last_session"][row] = self.session
         cols["last_frame"][row] = frame_index
         cols["clear_since_det"][row] = 0
+        cols["empty_since_det"][row] = 0
 
     def _count_view(self, row: int) -> None:
         """A detection of ``row`` from a new view (confirm_min_move / confirm_min_turn since the

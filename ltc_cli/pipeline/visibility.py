@@ -110,6 +110,7 @@ def pixel_counts(
     hidden_by_whole_box: bool = False,
     with_whole_box: bool = False,
     hide_needs_depth: bool | str = False,
+    past_middle: float | None = None,
 ):
     """Pixels of each box that the camera should see: (visible (M,), projected (M,)), and with
     ``with_empty`` also empty (M,): those of the visible pixels whose observed depth lies beyond
@@ -124,7 +125,12 @@ def pixel_counts(
 
     ``hidden_by_whole_box``: another box hides a ray only when the ray leaves that box before it
     enters this one (the other box lies wholly in front along the ray), not merely enters it first.
-    ``with_whole_box``: also return (last) the visible pixels by the whole-box rule.
+    ``with_whole_box``: also return the visible pixels by the whole-box rule (after ``empty``).
+    ``past_middle`` (metres): also return (last) those of the visible pixels (by the whole-box rule
+    when ``with_whole_box``) whose observed depth lies beyond the middle of the box along the ray
+    by more than this: the ray went through where the object's near half would be. A cup taken
+    from a table leaves rays that end on the table top at the box's bottom, past its middle but not
+    past its far side; a cup still there stops them at its near surface.
     A cup on a table lies inside the table's box: every ray to the cup enters the table's box first,
     so by the entry test alone the cup is never visible and never missed, and a cup taken away stays
     in the map for ever. A chair in front of a cabinet still hides it (its box ends before).
@@ -169,10 +175,14 @@ def pixel_counts(
     out = [per_box(seen), per_box(in_range)]
     if with_empty:
         out.append(per_box(seen & (obs > exit_ + depth_tolerance)))
+    counted = seen
     if with_whole_box:
         # The same count as the first when both use the whole-box rule and the same depth rule.
         same = hidden_by_whole_box and (hide_needs_depth is True) == bool(hide_needs_depth)
-        out.append(out[0] if same else per_box(depth_ok & unhidden(True, bool(hide_needs_depth))))
+        counted = seen if same else depth_ok & unhidden(True, bool(hide_needs_depth))
+        out.append(out[0] if same else per_box(counted))
+    if past_middle is not None:
+        out.append(per_box(counted & (obs > 0.5 * (entry + exit_) + past_middle)))
     return tuple(out)
 
 

@@ -1,0 +1,114 @@
+"""maintenance.absent_empty_views (issue 9, eighth round): the absence rule removes an object only
+when the depth saw through its box, not on the detector's silence alone. Expected values are
+worked out by hand from the rendered scenes (tests/scene.py: camera at the origin looking along +x,
+f 500, depth = x)."""
+
+import numpy as np
+import pytest
+
+from ltc_cli import plugins
+from ltc_cli.config import defaults
+from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
+from ltc_cli.pipeline.maintenance import absent_in_session, count_absence_views
+from ltc_cli.pipeline.mapper import Mapper
+from ltc_cli.pipeline.visibility import pixel_counts
+from tests.scene import INTR, T_world_camera, render
+from tests.test_identity import CHAIR_BOX, CHAIR_FACE, CLASSES, chair_vector
+from tests.test_lap_rules import CUP, boxes
+
+
+@pytest.mark.parametrize("scene, through_share, empty_share", [
+    ([CUP], 0.0, (0.0, 0.0)),                             # the cup is there: rays stop at its face (2.0 m)
+    ([], 1.0, (1.0, 1.0)),                                # taken away: rays reach the wall at 4 m
+    ([(2.2, 2.3, -0.3, 0.3, 0.5, 1.5)], 1.0, (0.0, 0.2)),  # taken away from a shelf at its far side
+])
+def test_rays_past_the_middle_of_the_box(scene, through_share, empty_share):
+    """The cup's box spans x 2.0-2.2: its middle along the central rays is at 2.1 m, and with a 3 cm
+    margin a ray sees through it when the depth is beyond 2.13 m. Beyond the far side (the empty
+    count of eq. 4's seen-empty rule) needs 2.2 + 0.2 m tolerance = 2.4 m: the shelf behind the
+    cup's place (2.2 m) is seen through by the first; by the second only along the rays that graze
+    the box's edges (they leave it near 2.0 m), 100 of the 676 sampled (15 %)."""
+    depth, _ = render(scene, wall_x=4.0)
+    vis, proj, empty, through = pixel_counts(boxes(CUP), T_world_camera(), depth, INTR, 2, 0.2, (0.3, 6.0),
+                                             with_empty=True, past_middle=0.03)
+    assert proj[0] == pytest.approx(2500, rel=0.1) and vis[0] == proj[0]
+    assert through[0] == pytest.approx(through_share * vis[0])
+    assert empty_share[0] * vis[0] <= empty[0] <= empty_share[1] * vis[0]
+
+
+def test_absent_in_session_needs_views_that_saw_through():
+    """Session 2, absent_after_views 3: all four objects of session 0 were seen clearly 4 times in
+    this session and never detected; their places were seen through 0, 1, 2 and 4 times. Without
+    the gate all go; with 2 views needed, the last two."""
+    n = 4
+    args = (np.ones(n, bool), np.zeros(n, int), np.zeros(n, int), np.full(n, 3), np.full(n, 4), 2, 3)
+    through = np.array([0, 1, 2, 4])
+    assert absent_in_session(*args).tolist() == [True] * 4
+    gone = absent_in_session(*args, np.full(n, 4), None, None, through, 2)
+    assert gone.tolist() == [False, False, True, True]
+    # Two quiet sessions (none detected since session 0, 4 clear views since >= 3) stay enough.
+    gone = absent_in_session(*args, np.full(n, 4), 2, None, through, 2)
+    assert gone.tolist() == [True] * 4
+
+
+def test_count_absence_views_by_hand():
+    """Three objects in view in session 1; the first two clearly; the first detected; the second
+    seen through. The counts start over in a new session (clear_session holds session + 1)."""
+    cols = {"clear_session": np.array([2, 1, 2]), "clear_in_session": np.array([5, 7, 1]),
+            "clear_since_det": np.array([0, 7, 1]), "empty_since_det": np.array([0, 3, 1])}
+    count_absence_views(cols, np.array([0, 1, 2]), np.array([True, True, False]), np.array([True, False, False]),
+                        np.array([True, True, False]), 1)
+    assert cols["clear_session"].tolist() == [2, 2, 2]          # object 1: its first clear view of session 1
+    assert cols["clear_in_session"].tolist() == [6, 1, 1]
+    assert cols["clear_since_det"].tolist() == [0, 8, 1]        # a detected object's count stays
+    assert cols["empty_since_det"].tolist() == [0, 4, 1]
+
+
+def lap_without_detections(depth, empty_views):
+    """A chair of session 0, never detected in 6 frames of session 1 from one place (one counted
+    eq. 4 miss: far from removal), then the session's end (absent_after_views 5)."""
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["absent_empty_views"] = empty_views
+    smap = SemanticMap.new(CLASSES)
+    t = smap.objects
+    row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
+                   scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    for k in range(6):
+        mapper.process_frame(k, str(k), [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    mapper.prune_unconfirmed(2, -1, "end", None)
+    return t.status[row], t.empty_since_det[row]
+
+
+@pytest.mark.parametrize("chair_there, empty_views, expected, seen_through", [
+    (True, None, REMOVED, 0),   # the detector's silence alone removes a chair still standing there
+    (True, 2, ACTIVE, 0),       # the depth shows its face (2.0 m, the box's near side): it stays
+    (False, 2, REMOVED, 6),     # taken away: the wall at 4 m in all 6 views
+    (False, 7, ACTIVE, 6),      # ... but 6 views are fewer than 7
+])
+def test_a_chair_missed_for_a_whole_session_goes_only_when_its_place_was_seen_empty(chair_there, empty_views,
+                                                                                     expected, seen_through):
+    depth, _ = render([CHAIR_FACE] if chair_there else [], wall_x=4.0)
+    status, through = lap_without_detections(depth, empty_views)
+    assert status == expected
+    assert through == (seen_through if empty_views is not None else 0)
+
+
+def test_a_detection_starts_the_count_again():
+    """empty_since_det counts the views since the object's last detection, like clear_since_det."""
+    cfg = defaults()
+    smap = SemanticMap.new(CLASSES)
+    t = smap.objects
+    row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
+                   scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    gone, _ = render([], wall_x=4.0)
+    seen, masks = render([CHAIR_FACE], wall_x=4.0)
+    for k in range(3):
+        mapper.process_frame(k, str(k), [], [], gone, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.empty_since_det[row] == 3
+    mapper.process_frame(3, "3", [masks[0]], [chair_vector(0.8)], seen, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.empty_since_det[row] == 0
