@@ -64,18 +64,25 @@ def test_count_absence_views_by_hand():
     assert cols["empty_since_det"].tolist() == [0, 4, 1]
 
 
-def lap_without_detections(depth, empty_views):
-    """A chair of session 0, never detected in 6 frames of session 1 from one place (one counted
-    eq. 4 miss: far from removal), then the session's end (absent_after_views 5)."""
-    cfg = defaults()
-    cfg["maintenance"]["absent_after_views"] = 5
-    cfg["maintenance"]["absent_empty_views"] = empty_views
+def old_chair_in_session_1(cfg):
+    """(object table, row, mapper): a chair of session 0 detected 50 times, and a mapper of
+    session 1 over the map."""
     smap = SemanticMap.new(CLASSES)
     t = smap.objects
     row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
                    scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
     mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
                     plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    return t, row, mapper
+
+
+def lap_without_detections(depth, empty_views):
+    """A chair of session 0, never detected in 6 frames of session 1 from one place (one counted
+    eq. 4 miss: far from removal), then the session's end (absent_after_views 5)."""
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["absent_empty_views"] = empty_views
+    t, row, mapper = old_chair_in_session_1(cfg)
     for k in range(6):
         mapper.process_frame(k, str(k), [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
     mapper.prune_unconfirmed(2, -1, "end", None)
@@ -98,13 +105,7 @@ def test_a_chair_missed_for_a_whole_session_goes_only_when_its_place_was_seen_em
 
 def test_a_detection_starts_the_count_again():
     """empty_since_det counts the views since the object's last detection, like clear_since_det."""
-    cfg = defaults()
-    smap = SemanticMap.new(CLASSES)
-    t = smap.objects
-    row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
-                   scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    t, row, mapper = old_chair_in_session_1(defaults())
     gone, _ = render([], wall_x=4.0)
     seen, masks = render([CHAIR_FACE], wall_x=4.0)
     for k in range(3):
