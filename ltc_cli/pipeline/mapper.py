@@ -155,15 +155,15 @@ class Mapper:
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty, clear_absent, through = self._missed(rows, matched, T_map_camera, depth_m, intr,
-                                                                       depth_range, frame_index)
+            missed, clear, empty, clear_absent, seen_through = self._missed(rows, matched, T_map_camera, depth_m,
+                                                                            intr, depth_range, frame_index)
             vectors = self.rates.vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
             for row in rows[clear]:
                 self.rates.touch(int(row))
                 cols["n_clear"][row] += 1
-            count_absence_views(cols, rows, clear_absent, matched, through, self.session)
+            count_absence_views(cols, rows, clear_absent, matched, seen_through, self.session)
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
                 res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
