@@ -86,7 +86,8 @@ def lap_without_detections(depth, empty_views):
     for k in range(6):
         mapper.process_frame(k, str(k), [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
     mapper.prune_unconfirmed(2, -1, "end", None)
-    return t.status[row], t.empty_since_det[row]
+    removed = [e.detail for e in mapper.map.events if e.kind == "removed"]
+    return t.status[row], t.empty_since_det[row], removed[-1] if removed else None
 
 
 @pytest.mark.parametrize("chair_there, empty_views, expected, seen_through", [
@@ -98,9 +99,13 @@ def lap_without_detections(depth, empty_views):
 def test_a_chair_missed_for_a_whole_session_goes_only_when_its_place_was_seen_empty(chair_there, empty_views,
                                                                                      expected, seen_through):
     depth, _ = render([CHAIR_FACE] if chair_there else [], wall_x=4.0)
-    status, through = lap_without_detections(depth, empty_views)
+    status, through, reason = lap_without_detections(depth, empty_views)
     assert status == expected
     assert through == (seen_through if empty_views is not None else 0)
+    if expected == REMOVED:  # the event log says what the camera saw
+        assert reason == ("other: clearly visible in 6 frames of this session (6 since its last detection"
+                          + (f", its place seen empty in {seen_through}" if empty_views is not None else "")
+                          + "), detected in none")
 
 
 def test_a_detection_starts_the_count_again():

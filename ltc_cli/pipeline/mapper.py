@@ -258,7 +258,9 @@ class Mapper:
                 absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"],
                 t.empty_since_det, m_cfg["absent_empty_views"]))
             for row in old:
-                self._remove(row, frame_index, frame_key, absent_detail(t.clear_in_session[row], t.clear_since_det[row]))
+                self._remove(row, frame_index, frame_key, absent_detail(
+                    t.clear_in_session[row], t.clear_since_det[row],
+                    t.empty_since_det[row] if m_cfg["absent_empty_views"] is not None else None))
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
             self._remove(row, frame_index, frame_key,

@@ -8,10 +8,12 @@ import numpy as np
 from ltc_cli.text import plural
 
 
-def absent_detail(in_session: int, since_detection: int) -> str:
-    """The event log's reason for a removal by the absence rule (starts "other: clearly")."""
+def absent_detail(in_session: int, since_detection: int, seen_through: int | None = None) -> str:
+    """The event log's reason for a removal by the absence rule (starts "other: clearly"); with
+    ``seen_through``, how many of the views since its last detection saw through its box."""
+    through = "" if seen_through is None else f", its place seen empty in {int(seen_through)}"
     return (f"other: clearly visible in {int(in_session)} frames of this session ({int(since_detection)} since its "
-            "last detection), detected in none")
+            f"last detection{through}), detected in none")
 
 
 def unconfirmed_detail(n_det: int, n_clear: int, min_detections: int, min_share: float | None,
