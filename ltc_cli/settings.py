@@ -63,6 +63,7 @@ class IntegrationSettings(TypedDict):
     unassigned_score: str
     relabel_weight: str
     stale_box_weight: Optional[float]
+    stale_partial_moves: bool
 
 
 class MaintenanceSettings(TypedDict):

@@ -9,6 +9,7 @@ import numpy as np
 
 from ltc_cli.pipeline.association import vertex_distance
 from ltc_cli.geometry.boxes import SHIFTS, Box, align_yaw, box_corners, min_area_rect, wrap_yaw
+from ltc_cli.geometry.polygons import pairwise_ious_arrays
 from ltc_cli.pipeline.modeling import defined_flags
 
 
@@ -139,6 +140,23 @@ def stale_weight(weight: float, stale: bool, cap: float | None) -> float:
     detected in an earlier session (``stale``; None: no cap). Its first detection of a session
     then moves a box that says where the object was towards where it is now."""
     return weight if cap is None or not stale else min(weight, float(cap))
+
+
+def moved_elsewhere(det: Box, obj: Box, stale: bool) -> bool:
+    """True when a partial detection says that a Defined object last detected in an earlier session
+    (``stale``) now stands elsewhere: eq. 2 matched them, yet their footprints do not overlap.
+
+    The paper keeps a Defined box against any partial view (a partial view cannot improve a
+    complete box). That holds while the object stays put; a bottle put down 15 cm from where it
+    stood last week matches its old object (same class, well within 0.4 m) from views that are
+    partial, and its old Defined box would stay where it was, a ghost beside the bottle. A box that
+    a view of the object does not even touch is no longer where the object is.
+    """
+    if not stale or det.defined or not obj.defined:
+        return False
+    iou = pairwise_ious_arrays(det.center[None], [det.yaw], det.size[None], obj.center[None], [obj.yaw],
+                               obj.size[None])[0]
+    return float(iou[0, 0]) <= 0.0
 
 
 def merged_box(merged: Box, keep: Box, drop: Box, current: str | None, foreign: bool) -> Box:

@@ -22,7 +22,8 @@ from ltc_cli.pipeline.association import (
     thresholds_for, within_reach,
 )
 from ltc_cli.pipeline.integration import (
-    fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, stale_side, stale_weight,
+    fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, moved_elsewhere, stale_side,
+    stale_weight,
 )
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, count_absence_views, found_again, in_view, new_view, non_detection_vectors,
@@ -315,6 +316,8 @@ class Mapper:
         obj = t.box(row)
         if self._foreign(s_det, t.scores[row], det_box, obj):
             new = obj  # the class evidence fuses; the geometry of a different object does not
+        elif i_cfg["stale_partial_moves"] and moved_elsewhere(det_box, obj, t.last_session[row] < self.session):
+            new = det_box  # the object was moved: its old box is where it was, the detection where it is
         else:
             w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
             new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
