@@ -92,9 +92,10 @@ class MaintenanceSettings(TypedDict):
     absent_after_views: Optional[int]
     absent_quiet_sessions: Optional[int]
     absent_quiet_views: Optional[int]
-    absent_empty_views: Optional[int]
-    absent_empty_share: float
-    absent_empty_margin: float
+    absent_through_views: Optional[int]
+    absent_through_share: float
+    through_margin: float
+    nondet_through_share: Optional[float]
     spare_frames: Optional[int]
     hidden_by_whole_box: Union[bool, str]
     hide_needs_depth: Union[bool, str]

@@ -1,5 +1,6 @@
-"""maintenance.absent_empty_views (issue 9, eighth round): the absence rule removes an object only
-when the depth saw through its box, not on the detector's silence alone. Expected values are
+"""maintenance.absent_through_views and nondet_through_share (issue 9, eighth round): the absence
+rule removes an object, and a clear miss counts for eq. 4, only when the depth saw through its box,
+not on the detector's silence alone. Expected values are
 worked out by hand from the rendered scenes (tests/scene.py: camera at the origin looking along +x,
 f 500, depth = x)."""
 
@@ -55,13 +56,13 @@ def test_count_absence_views_by_hand():
     """Three objects in view in session 1; the first two clearly; the first detected; the second
     seen through. The counts start over in a new session (clear_session holds session + 1)."""
     cols = {"clear_session": np.array([2, 1, 2]), "clear_in_session": np.array([5, 7, 1]),
-            "clear_since_det": np.array([0, 7, 1]), "empty_since_det": np.array([0, 3, 1])}
+            "clear_since_det": np.array([0, 7, 1]), "through_since_det": np.array([0, 3, 1])}
     count_absence_views(cols, np.array([0, 1, 2]), np.array([True, True, False]), np.array([True, False, False]),
                         np.array([True, True, False]), 1)
     assert cols["clear_session"].tolist() == [2, 2, 2]          # object 1: its first clear view of session 1
     assert cols["clear_in_session"].tolist() == [6, 1, 1]
     assert cols["clear_since_det"].tolist() == [0, 8, 1]        # a detected object's count stays
-    assert cols["empty_since_det"].tolist() == [0, 4, 1]
+    assert cols["through_since_det"].tolist() == [0, 4, 1]
 
 
 def old_chair_in_session_1(cfg):
@@ -81,13 +82,13 @@ def lap_without_detections(depth, empty_views):
     eq. 4 miss: far from removal), then the session's end (absent_after_views 5)."""
     cfg = defaults()
     cfg["maintenance"]["absent_after_views"] = 5
-    cfg["maintenance"]["absent_empty_views"] = empty_views
+    cfg["maintenance"]["absent_through_views"] = empty_views
     t, row, mapper = old_chair_in_session_1(cfg)
     for k in range(6):
         mapper.process_frame(k, str(k), [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
     mapper.prune_unconfirmed(2, -1, "end", None)
     removed = [e.detail for e in mapper.map.events if e.kind == "removed"]
-    return t.status[row], t.empty_since_det[row], removed[-1] if removed else None
+    return t.status[row], t.through_since_det[row], removed[-1] if removed else None
 
 
 @pytest.mark.parametrize("chair_there, empty_views, expected, seen_through", [
@@ -109,12 +110,28 @@ def test_a_chair_missed_for_a_whole_session_goes_only_when_its_place_was_seen_em
 
 
 def test_a_detection_starts_the_count_again():
-    """empty_since_det counts the views since the object's last detection, like clear_since_det."""
+    """through_since_det counts the views since the object's last detection, like clear_since_det."""
     t, row, mapper = old_chair_in_session_1(defaults())
     gone, _ = render([], wall_x=4.0)
     seen, masks = render([CHAIR_FACE], wall_x=4.0)
     for k in range(3):
         mapper.process_frame(k, str(k), [], [], gone, T_world_camera(), INTR, (0.3, 6.0))
-    assert t.empty_since_det[row] == 3
+    assert t.through_since_det[row] == 3
     mapper.process_frame(3, "3", [masks[0]], [chair_vector(0.8)], seen, T_world_camera(), INTR, (0.3, 6.0))
-    assert t.empty_since_det[row] == 0
+    assert t.through_since_det[row] == 0
+
+
+@pytest.mark.parametrize("chair_there, share, nondets", [
+    (True, 0.5, 0),      # the depth shows the chair's face: the detector's miss does not count
+    (True, None, 1),     # the paper: every clear miss counts
+    (False, 0.5, 1),     # taken away (the wall at 4 m): it counts
+])
+def test_a_miss_counts_only_where_the_depth_does_not_show_the_object(chair_there, share, nondets):
+    cfg = defaults()
+    cfg["maintenance"]["nondet_through_share"] = share
+    cfg["maintenance"]["spare_frames"] = None
+    t, row, mapper = old_chair_in_session_1(cfg)
+    depth, _ = render([CHAIR_FACE] if chair_there else [], wall_x=4.0)
+    mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.n_nondet[row] == nondets
+    assert t.n_clear[row] == 1  # clearly visible either way

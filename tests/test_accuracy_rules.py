@@ -34,6 +34,7 @@ def every_miss_counts(cfg):
     computations below use; the defaults learn v_Other per class and cap D at 20)."""
     m = cfg["maintenance"]
     m["nondet_min_move"] = m["nondet_min_turn"] = m["seen_empty_share"] = m["v_other_seen_empty"] = None
+    m["nondet_through_share"] = None  # also where the depth shows the object standing there
     m["absent_after_views"] = None
     m["learn_detection_rate"] = False
     cfg["integration"]["max_weight"] = 5

@@ -147,10 +147,12 @@ def test_seen_empty_and_confirmation_by_share_by_hand():
 def test_a_miss_seen_through_counts_and_weighs_more():
     """The chair is gone: the camera sees the wall 1.6 m behind where it stood. With the depth as
     evidence each such miss counts (no view gate) with v_Other 0.9; a chair that is there but
-    undetected (the depth hits its face) still counts once per view."""
+    undetected (the depth hits its face) still counts once per view when every clear miss counts
+    (nondet_through_share null; by default it does not count: tests/test_absence_evidence.py)."""
     cfg = defaults()
     m = cfg["maintenance"]
     m["nondet_min_move"], m["nondet_min_turn"], m["seen_empty_share"], m["v_other_seen_empty"] = 0.25, 20, 0.75, 0.9
+    m["nondet_through_share"] = None
     cfg["integration"]["max_weight"] = 5  # the D of the hand value below
     mapper = make_mapper(cfg)
     gone = add_object(mapper, *CHAIR_BOX, chair_vector(), n_det=50)

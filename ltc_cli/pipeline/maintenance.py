@@ -55,14 +55,15 @@ def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, int
                 depth_range: tuple[float, float], m_cfg: dict) -> ViewCounts:
     """The :class:`ViewCounts` of boxes in view, by the maintenance settings ``m_cfg``:
     :func:`pixel_counts` with its hiding rules (``hidden_by_whole_box``: True for every count,
-    "absence" for the absence rule's only; ``hide_needs_depth``; ``absent_empty_margin`` past the
-    middle when ``absent_empty_views`` is set) and :func:`required_pixels` scaled from 640x480."""
+    "absence" for the absence rule's only; ``hide_needs_depth``; ``through_margin`` past the
+    middle when ``absent_through_views`` or ``nondet_through_share`` is set) and
+    :func:`required_pixels` scaled from 640x480."""
     whole = m_cfg["hidden_by_whole_box"]
-    through = m_cfg["absent_empty_views"] is not None
+    through = m_cfg["absent_through_views"] is not None or m_cfg["nondet_through_share"] is not None
     counts = pixel_counts(
         boxes, T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
         with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence",
-        hide_needs_depth=m_cfg["hide_needs_depth"], past_middle=m_cfg["absent_empty_margin"] if through else None)
+        hide_needs_depth=m_cfg["hide_needs_depth"], past_middle=m_cfg["through_margin"] if through else None)
     vis_px, proj_px, empty_px = counts[:3]
     scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
     need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
@@ -77,12 +78,12 @@ def count_absence_views(cols: dict, rows: np.ndarray, clear_absent: np.ndarray, 
     object columns ``cols`` in place): clear views in this session (``clear_session`` holds the
     session + 1; 0: none yet, maps from before), clear views without a detection since the last
     detection (``clear_since_det``), and of those the ones that saw through the box
-    (``empty_since_det``). clear_absent, matched, seen_through: (M,) bool over rows."""
+    (``through_since_det``). clear_absent, matched, seen_through: (M,) bool over rows."""
     fresh = rows[clear_absent & (cols["clear_session"][rows] != session + 1)]
     cols["clear_session"][fresh], cols["clear_in_session"][fresh] = session + 1, 0
     cols["clear_in_session"][rows[clear_absent]] += 1
     cols["clear_since_det"][rows[clear_absent & ~matched]] += 1
-    cols["empty_since_det"][rows[clear_absent & ~matched & seen_through]] += 1
+    cols["through_since_det"][rows[clear_absent & ~matched & seen_through]] += 1
 
 
 def required_pixels(projected: np.ndarray, min_pixels: float, min_fraction, floor: float,
@@ -230,7 +231,7 @@ def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None
 def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_session: np.ndarray,
                       clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views: int,
                       clear_since_det: np.ndarray | None = None, quiet_sessions: int | None = None,
-                      quiet_views: int | None = None, empty_since_det: np.ndarray | None = None,
+                      quiet_views: int | None = None, through_since_det: np.ndarray | None = None,
                       empty_views: int | None = None) -> np.ndarray:
     """(M,) bool: active objects of earlier sessions seen clearly in at least ``views`` frames of
     this session and detected in none: a whole visit's worth of views, not one unlucky frame
@@ -243,7 +244,7 @@ def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_sessio
     chair taken away whose old place each lap sees clearly only two or three times (the room's far
     corner) is as gone after two laps as one seen five times in one.
 
-    With ``empty_views`` (and ``empty_since_det``: those clear views without a detection that saw
+    With ``empty_views`` (and ``through_since_det``: those clear views without a detection that saw
     through the box), the session's count removes only objects whose place the camera saw empty
     in at least that many views: one pass of the detector's silence is not enough when the depth
     still shows something there (a tv or a book missed for a whole pass, in a run of correlated
@@ -251,8 +252,8 @@ def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_sessio
     """
     quiet = np.asarray(active) & (np.asarray(first_session) < session) & (np.asarray(last_session) < session)
     gone = (np.asarray(clear_session) == session + 1) & (np.asarray(clear_in_session) >= views)
-    if empty_views is not None and empty_since_det is not None:
-        gone &= np.asarray(empty_since_det) >= empty_views
+    if empty_views is not None and through_since_det is not None:
+        gone &= np.asarray(through_since_det) >= empty_views
     if quiet_sessions is not None and clear_since_det is not None:
         gone |= ((np.asarray(last_session) <= session - quiet_sessions)
                  & (np.asarray(clear_since_det) >= (views if quiet_views is None else quiet_views)))

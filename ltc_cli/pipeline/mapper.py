@@ -214,7 +214,7 @@ class Mapper:
         in-view rows: which get a non-detection, as the maintenance policy decides; which were
         clearly visible (enough pixels to say so); which of the missed ones the depth showed to be
         free space; which were clearly visible by ``hidden_by_whole_box`` ("absence": by the
-        whole-box rule); and which of those the camera saw through (absent_empty_share of the
+        whole-box rule); and which of those the camera saw through (absent_through_share of the
         pixels past the box's middle)."""
         m_cfg = self.cfg["maintenance"]
         vis_px, need, empty_px, vis_absent, through_px = view_counts(self.map.objects.boxes(rows), T_map_camera,
@@ -224,6 +224,9 @@ class Mapper:
             t = self.map.objects
             missed &= ~found_again(t.first_session[rows], t.last_session[rows], t.last_frame[rows], self.session,
                                    frame_index, m_cfg["spare_frames"])
+        if m_cfg["nondet_through_share"] is not None:
+            # Where the depth shows something standing in the box, the detector's silence is its own.
+            missed &= seen_empty(vis_absent, through_px, m_cfg["nondet_through_share"])
         empty = missed & seen_empty(vis_px, empty_px, m_cfg["seen_empty_share"])
         if missed.any():
             # A miss where the depth shows free space is not the detector's word but the camera's:
@@ -231,7 +234,7 @@ class Mapper:
             t, view = self.map.objects, camera_view(T_map_camera)
             missed &= empty | new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
             t.cols["nondet_view"][rows[missed]] = view
-        through = seen_empty(vis_absent, through_px, m_cfg["absent_empty_share"]) if through_px is not None \
+        through = seen_empty(vis_absent, through_px, m_cfg["absent_through_share"]) if through_px is not None \
             else np.zeros(len(rows), dtype=bool)
         return missed, vis_px >= need, empty, vis_absent >= need, through
 
@@ -257,11 +260,11 @@ class Mapper:
             old = np.flatnonzero(absent_in_session(
                 t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
                 absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"],
-                t.empty_since_det, m_cfg["absent_empty_views"]))
+                t.through_since_det, m_cfg["absent_through_views"]))
             for row in old:
                 self._remove(row, frame_index, frame_key, absent_detail(
                     t.clear_in_session[row], t.clear_since_det[row],
-                    t.empty_since_det[row] if m_cfg["absent_empty_views"] is not None else None))
+                    t.through_since_det[row] if m_cfg["absent_through_views"] is not None else None))
             gone = len(old)  # removed once, as absent (not also as unconfirmed)
         for row in rows:
             self._remove(row, frame_index, frame_key,
@@ -285,7 +288,7 @@ class Mapper:
         cols["last_session"][row] = self.session
         cols["last_frame"][row] = frame_index
         cols["clear_since_det"][row] = 0
-        cols["empty_since_det"][row] = 0
+        cols["through_since_det"][row] = 0
 
     def _count_view(self, row: int) -> None:
         """A detection of ``row`` from a new view (confirm_min_move / confirm_min_turn since the
