@@ -15,16 +15,13 @@ import numpy as np
 
 from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
-from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, GridIndex, SemanticMap, top_class
+from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, greedy_merges,
-    half_diagonals, label_survivor, match_reach, merge_pairs, nearest_under_threshold, other_class_caps, similar_volume,
-    thresholds_for, within_reach,
+    adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, half_diagonals,
+    match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, within_reach,
 )
-from ltc_cli.pipeline.integration import (
-    fuse_scores, integrate_box, label_weight, merge_objects, merged_box, merged_scores, moved_elsewhere, stale_side,
-    stale_weight,
-)
+from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, moved_elsewhere, stale_weight
+from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, count_absence_views, found_again, in_view, new_view, non_detection_vectors,
     other_leads, seen_empty, tentative, unconfirmed, view_counts,
@@ -49,7 +46,7 @@ class FrameResult:
     timings: dict = field(default_factory=dict)
 
 
-class Mapper:
+class Mapper(InstanceMerging):
     """Runs the four stages of LTC-Mapping frame after frame on a :class:`SemanticMap`."""
 
     def __init__(self, smap: SemanticMap, config: Settings, metric: Metric, policy: Policy, session: int = 0):
@@ -356,65 +353,3 @@ class Mapper:
             return False
         self._remove(row, frame_index, frame_key, other_leads_detail(s, self.map.classes, t.n_nondet[row], t.n_det[row]))
         return True
-
-    def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
-        """Instance de-duplication: in-view map objects that now match each other become one."""
-        t = self.map.objects
-        rows = self._candidates(invert_pose(T_camera_map), T_camera_map, intr, max_depth)
-        if rows.size < 2:
-            return 0
-        a_cfg = self.cfg["association"]
-        pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
-                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows])
-        merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
-        for keep, drop in merges:
-            self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
-        return len(merges)
-
-    def _merge_weights(self, older: int, newer: int) -> tuple[float, float]:
-        t = self.map.objects
-        # Two labels of one object: each class vector weighs as its observations (relabel_weight all).
-        same = int(top_class(t.scores[older])) == int(top_class(t.scores[newer]))
-        return tuple(label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same,
-                                  self.cfg["integration"]["relabel_weight"]) for r in (older, newer))
-
-    def _merged(self, older: int, newer: int):
-        """(box, class vector) of two map objects merged; the older one takes the role of the map
-        object and the newer one of the observation, whichever keeps its id."""
-        t, i_cfg = self.map.objects, self.cfg["integration"]
-        b_old, b_new = t.box(older), t.box(newer)
-        w_old, w_new = self._merge_weights(older, newer)
-        box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
-                                    i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
-        side = stale_side(t.last_session[older] == self.session, t.last_session[newer] == self.session) \
-            if self.cfg["association"]["merge_current_box"] else None
-        return merged_box(box, b_old, b_new, side, self._foreign(t.scores[newer], t.scores[older], b_new, b_old)), scores
-
-    def _survivor(self, rows: np.ndarray, a: int, b: int) -> int:
-        """Which of rows[a] (older) and rows[b] (newer), about to merge, keeps its id (a or b)."""
-        t = self.map.objects
-        by_label = self.cfg["association"]["merge_id_by_label"]
-        tops = top_class(t.scores[rows[[a, b]]])
-        if not by_label or tops[0] == tops[1]:
-            return a
-        older, newer = int(rows[a]), int(rows[b])
-        scores = merged_scores(t.scores[older], t.scores[newer], *self._merge_weights(older, newer))
-        return b if label_survivor(int(tops[0]), int(tops[1]), int(top_class(scores)), by_label) else a
-
-    def _absorb(self, keep, drop, frame_index, frame_key) -> None:
-        t = self.map.objects
-        self.rates.touch(keep)
-        self.rates.touch(drop)
-        box, scores = self._merged(min(keep, drop), max(keep, drop))
-        t.set_box(keep, box)
-        t.cols["scores"][keep] = scores
-        for col in ("n_det", "n_nondet", "n_clear"):
-            t.cols[col][keep] += t.cols[col][drop]
-        t.cols["det_views"][keep] = max(t.det_views[keep], t.det_views[drop])
-        if (t.first_session[drop], t.first_frame[drop]) < (t.first_session[keep], t.first_frame[keep]):
-            t.cols["first_session"][keep] = t.first_session[drop]
-            t.cols["first_frame"][keep] = t.first_frame[drop]
-        self._seen(keep, frame_index)
-        self._set_status(drop, MERGED)
-        self.index.insert(keep, box.center, box.size)
-        self._log(frame_index, frame_key, "merged", keep + 1, drop + 1)
