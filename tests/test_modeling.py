@@ -213,3 +213,12 @@ def test_min_depth_share_drops_a_dark_screen():
     assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 1
     p["min_depth_share"] = 0.2
     assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 0
+    # The default (0.2) drops it too, and keeps the same screen when its depth covers a strip
+    # four tenths of its width (about 35-40 % of the thinned mask).
+    p = dict(defaults()["modeling"])
+    assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 0
+    depth, _ = render([(2.0, 2.05, -0.3, 0.3, 0.2, 1.0)], wall_x=4.0)
+    hole = mask.copy()
+    hole[:, mid - 2 * strip : mid + 2 * strip] = False
+    depth[hole] = 0.0
+    assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 1
