@@ -14,16 +14,16 @@ benchmark builds that perfect map and scores it with the same evaluator as the r
   far (what a map that keeps its id does).
 
 The share of oracle boxes at XY IoU > 0, > 0.25 and > 0.5 is the ceiling of precision and recall at
-those thresholds (a map with one perfect box per seen object), per class and overall.
+those thresholds (a map with one perfect box per seen object), per class and overall. The pose
+errors are regenerated exactly from the recording's seed and lap (the simulator draws them from
+its own generator, ltc_cli/tools/simulate/extras.py), so the figures are the simulator's, not a
+model of it.
 
 The detector bounds recall too: a mapper can only map an object its detector named. The last two
 columns are the share of seen objects that the recorded detector found, with their own class, in
 at least one and at least two frames while they stood where they stand now (a detection is on an
 object when more than half of its mask lies on the object's annotated pixels). ltc keeps an object
-only after two detections from distinct views, the paper after one. The pose
-errors are regenerated exactly from the recording's seed and lap (the simulator draws them from
-its own generator, ltc_cli/tools/simulate/extras.py), so the figures are the simulator's, not a
-model of it.
+only after two detections from distinct views, the paper after one.
 
     python benchmarks/bench_ceiling.py [--scene small] [--houses 4] [--first-seed 101] [--laps-pooled]
 """
@@ -45,8 +45,8 @@ import yaml  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 import bench_accuracy as acc  # noqa: E402
-from ltc_cli.recordings.rle import decode  # noqa: E402
 from ltc_cli.recordings.groundtruth import read_ground_truth  # noqa: E402
+from ltc_cli.recordings.rle import decode  # noqa: E402
 from ltc_cli.tools.evaluate import pairwise_ious  # noqa: E402
 from ltc_cli.tools.simulate.drift import pose_errors  # noqa: E402
 
@@ -73,7 +73,9 @@ def lap_views(lap_dir: Path):
 
 def detected_objects(ann_ids: np.ndarray, detections_json: Path) -> dict:
     """{object id: set of classes} of the detections of one frame whose masks lie more than half on
-    one object's annotated pixels ann_ids (H, W)."""
+    one object's annotated pixels ann_ids (H, W). Looser than ``ltc calibrate``'s one-to-one IoU
+    matching (tools/calibrate.py, match_frame) on purpose: a bound must not miss the halves of a
+    split mask or a mask that bleeds onto the wall, which a mapper still turns into the object."""
     out: dict = defaultdict(set)
     if not detections_json.exists():
         return out
