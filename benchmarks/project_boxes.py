@@ -1,6 +1,6 @@
 """Draw a map's boxes projected into frames of a recording, to look at a real map.
 
-    python benchmarks/project_boxes.py MAP.h5 RECORDING -o out.png [--frames 0,50,100,150] [--cols 2]
+    python benchmarks/project_boxes.py MAP.h5 RECORDING -o out.png [--frames 0,50,100,150] [--cols 2] [--ids 3,7]
 
 Each active object is drawn as its 12 box edges with ``id class``; vertices behind the camera are
 skipped. The map's up rotation is applied to the recording's poses, as ingest does.
@@ -32,12 +32,14 @@ def colour(name: str):
     return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
 
 
-def draw(smap, frame, T_up):
+def draw(smap, frame, T_up, ids=None):
     img = frame.rgb[..., ::-1].copy() if frame.rgb is not None else cv2.imread(frame.rgb_path)
     T_map_camera = T_up @ frame.T_world_camera
     T_camera_map = invert_pose(T_map_camera)
     t = smap.objects
     for row in np.flatnonzero(t.status == ACTIVE):
+        if ids and row + 1 not in ids:
+            continue
         name = smap.classes[int(top_class(t.scores[row]))]
         pts = transform(T_camera_map, box_corners(t.center[row], t.yaw[row], t.size[row]))
         u, v, z = project(pts, frame.intrinsics)
@@ -61,6 +63,7 @@ def main():
     ap.add_argument("--frames", default="0,60,120,180")
     ap.add_argument("--cols", type=int, default=2)
     ap.add_argument("--scale", type=float, default=0.6)
+    ap.add_argument("--ids", default="", help="only these object ids (comma-separated; default all)")
     args = ap.parse_args()
     smap = load_map(args.map)
     rec = open_recording(args.recording)
@@ -69,7 +72,7 @@ def main():
     tiles = []
     for i in [int(x) for x in args.frames.split(",")]:
         frame = rec.frames[min(i, len(rec.frames) - 1)].load()
-        img = draw(smap, frame, T_up)
+        img = draw(smap, frame, T_up, {int(x) for x in args.ids.split(",") if x})
         tiles.append(cv2.resize(img, None, fx=args.scale, fy=args.scale, interpolation=cv2.INTER_AREA))
     while len(tiles) % args.cols:
         tiles.append(np.zeros_like(tiles[0]))

@@ -222,3 +222,44 @@ def test_min_depth_share_drops_a_dark_screen():
     hole[:, mid - 2 * strip : mid + 2 * strip] = False
     depth[hole] = 0.0
     assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 1
+
+
+@pytest.mark.parametrize("method", ["grid", "dbscan"])
+def test_pixel_weights_count_the_pixels_a_subsampled_point_stands_for(method):
+    """A 1.0 x 0.6 m plane sampled every 0.1 m, as a stride-3 subsample of a mask whose pixels lie
+    3.3 cm apart. Each point has 9 points within eps 0.15 (itself, 4 at 0.1 m, 4 at 0.141 m) or
+    fewer at the edges: counted once, under min_samples 20 everywhere, so no cluster; counted for
+    its 3^2 = 9 pixels, at least 4 x 9 = 36 at a corner, every point is core: one cluster of all 77
+    (exact DBSCAN; the grid's cells, a coarser neighbourhood, may leave out a few corner points)."""
+    xs, ys = np.meshgrid(np.arange(11) * 0.1, np.arange(7) * 0.1)
+    pts = np.c_[xs.ravel(), ys.ravel(), np.zeros(xs.size)]
+    group = np.zeros(len(pts), int)
+    assert largest_clusters(pts, group, 0.15, 20, method)[0] is None
+    weights = np.full(len(pts), 9.0)
+    kept = largest_clusters(pts, group, 0.15, 20, method, weights=weights)[0]
+    if method == "dbscan":
+        assert sorted(kept.tolist()) == list(range(77))
+    else:
+        assert len(kept) >= 0.95 * 77
+    # The same plane at its pixels' spacing (every 0.0333 m), counted once, is one cluster too:
+    # the weights give the subsample the full mask's clustering.
+    xf, yf = np.meshgrid(np.arange(31) / 30, np.arange(19) / 30)
+    full = np.c_[xf.ravel(), yf.ravel(), np.zeros(xf.size)]
+    assert len(largest_clusters(full, np.zeros(len(full), int), 0.15, 20, method)[0]) == len(full)
+
+
+def test_pixel_weights_reach_the_clustering_through_the_settings():
+    """model_detections passes stride^2 weights only when modeling.pixel_weights is true: the
+    same sparse set of points is dropped without it and kept with it."""
+    p = dict(defaults()["modeling"])
+    assert p["pixel_weights"] is False
+    # A fronto-parallel face 2 m ahead, 0.6 x 0.4 m: about 150 x 100 px, so max_points 40
+    # samples it with stride 20 (8 cm between points at 2 m): under 20 points within eps each.
+    depth, _ = render([(2.0, 2.05, -0.3, 0.3, 0.6, 1.0)], wall_x=4.0)
+    u0, u1, v0, v1 = face_rect(-0.3, 0.3, 0.6, 1.0, 2.0)
+    mask = np.zeros(depth.shape, bool)
+    mask[v0:v1, u0:u1] = True
+    p.update(max_points=40, min_samples=20, thin_max_iterations=0, clustering="dbscan")
+    assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 0
+    p["pixel_weights"] = True
+    assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 1

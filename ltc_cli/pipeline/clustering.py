@@ -66,7 +66,8 @@ def voxel_components(points_xyz: np.ndarray, group: np.ndarray, eps: float):
     return vox_labels[inverse.ravel()]
 
 
-def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
+def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, min_samples: float,
+                       weights: np.ndarray | None = None) -> np.ndarray:
     """DBSCAN on a grid of cells of side eps / 2, all groups at once: labels (N,), -1 for noise.
 
     A cell's density is the number of points in it and its 26 neighbours (a 1.5 eps cube, about the
@@ -74,7 +75,8 @@ def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, mi
     distance can be under eps (up to 2 cells apart) are linked; a non-core cell next to a core one
     is a border cell of its cluster; the rest is noise. Like DBSCAN, sparse "flying pixels" between
     an object and the wall do not bridge them, at the cost of one sort and a few searchsorted
-    calls instead of a neighbour search per point.
+    calls instead of a neighbour search per point. weights (N,): what each point counts for in a
+    density (None: 1 each).
     """
     n = len(points_xyz)
     labels = np.full(n, -1, dtype=np.int64)
@@ -82,10 +84,12 @@ def grid_dbscan_labels(points_xyz: np.ndarray, group: np.ndarray, eps: float, mi
         return labels
     packed = _packed_cells(points_xyz, group, eps / 2, 2)
     if packed is None:
-        return _in_parts(grid_dbscan_labels, points_xyz, group, eps, eps, min_samples)
+        return _in_parts(grid_dbscan_labels, points_xyz, group, eps, eps, min_samples, weights=weights)
     keys, strides = packed
     uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
+    if weights is not None:
+        counts = np.bincount(inverse, weights=weights, minlength=len(uniq))
     m = len(uniq)
     rows, cols = [], []
     for off in _OFFSETS_2 @ strides:
@@ -151,7 +155,7 @@ def _packed_cells(points_xyz, group, cell, reach):
     return keys, np.array([bx, by, 1], dtype=np.int64)
 
 
-def _in_parts(fn, points_xyz, group, eps, *args):
+def _in_parts(fn, points_xyz, group, eps, *args, weights=None):
     """Labels (N,) of ``fn(points, group, *args)`` run on parts of the groups: consecutive groups,
     at most GROUPS_PER_PASS of them and (unless one group alone) POINTS_PER_PASS points a part, so
     memory is bounded per part; a part within both that is still too wide for packed keys is
@@ -183,7 +187,8 @@ def _in_parts(fn, points_xyz, group, eps, *args):
         idx = members(g0, g1)
         if not len(idx):
             continue
-        part = fn(points_xyz[idx], group[idx] - g0, *args)
+        part = fn(points_xyz[idx], group[idx] - g0, *args,
+                  **({} if weights is None else {"weights": weights[idx]}))
         found = part >= 0
         labels[idx[found]] = part[found] + offset
         offset += int(part.max()) + 1 if found.any() else 0
@@ -208,24 +213,28 @@ def _tree_components(points_xyz, group, eps):
     return connected_components(graph, directed=False)[1]
 
 
-def dbscan_labels(points_xyz: np.ndarray, eps: float, min_samples: int) -> np.ndarray:
+def dbscan_labels(points_xyz: np.ndarray, eps: float, min_samples: float, weights: np.ndarray | None = None) -> np.ndarray:
     """Exact DBSCAN (Ester et al. 1996), by scikit-learn: labels (N,), -1 for noise.
 
     Core points have at least min_samples points (themselves included) within eps; clusters are the
-    connected components of core points; a border point joins the cluster of a core neighbour. The
-    reference that the grid clustering (the default) is measured and tested against.
+    connected components of core points; a border point joins the cluster of a core neighbour
+    (with ``weights`` (N,), the points' summed weights count instead: scikit-learn's
+    sample_weight). The reference that the grid clustering (the default) is measured and tested
+    against.
     """
     if len(points_xyz) == 0:
         return np.zeros(0, dtype=np.int64)
     from sklearn.cluster import DBSCAN  # imported here: only the exact mode and the tests need it
 
-    return DBSCAN(eps=eps, min_samples=min_samples, algorithm="kd_tree").fit(points_xyz).labels_.astype(np.int64)
+    fit = DBSCAN(eps=eps, min_samples=min_samples, algorithm="kd_tree").fit(points_xyz, sample_weight=weights)
+    return fit.labels_.astype(np.int64)
 
 
-def largest_clusters(points_xyz, group, eps, min_samples, method="voxel", stack_gap=None):
+def largest_clusters(points_xyz, group, eps, min_samples, method="voxel", stack_gap=None, weights=None):
     """For each group (detection), the indices of its largest cluster, or None if too small; with
     ``stack_gap`` (metres), joined by the clusters that are parts of the same object
-    (:func:`stacked_components`).
+    (:func:`stacked_components`). weights (N,): what each point counts for, in DBSCAN's densities
+    and in cluster sizes (a subsampled mask point stands for the pixels around it; None: 1 each).
 
     ``voxel``: voxel components over all groups at once, then components with fewer than
     min_samples points are noise. ``dbscan``: exact DBSCAN per group. Returns a list indexed by
@@ -237,9 +246,10 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel", stack_
         members = _members(group, n_groups)
         for g in range(n_groups):
             idx = members(g)
-            labels = dbscan_labels(points_xyz[idx], eps, min_samples)
+            w = None if weights is None else weights[idx]
+            labels = dbscan_labels(points_xyz[idx], eps, min_samples, w)
             if (labels >= 0).any():
-                counts = np.bincount(labels[labels >= 0])
+                counts = np.bincount(labels[labels >= 0], weights=None if w is None else w[labels >= 0])
                 best = int(counts.argmax())
                 parts = [best]
                 if stack_gap is not None:
@@ -249,7 +259,7 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel", stack_
                 out[g] = idx[np.isin(labels, parts)]
         return out
     if method == "grid":
-        labels = grid_dbscan_labels(points_xyz, group, eps, min_samples)
+        labels = grid_dbscan_labels(points_xyz, group, eps, min_samples, weights)
         keep = labels >= 0
         if not keep.any():
             return out
@@ -258,7 +268,7 @@ def largest_clusters(points_xyz, group, eps, min_samples, method="voxel", stack_
     else:
         points_idx = np.arange(len(points_xyz))
         labels = voxel_components(points_xyz, group, eps)
-    counts = np.bincount(labels)
+    counts = np.bincount(labels, weights=None if weights is None else weights[points_idx])
     # The largest component of each group: sort by (group, -count) and take the first per group.
     comp_group = np.zeros(len(counts), dtype=np.int64)
     comp_group[labels] = group

@@ -300,7 +300,7 @@ def model_detections(
     Defined.
     """
     min_d, max_d = depth_range
-    pts_list, groups, sources, pads, backs = [], [], [], [], []
+    pts_list, groups, sources, pads, backs, weights = [], [], [], [], [], []
     for i, mask in enumerate(masks):
         crop, r0, c0, k = thin_crop(mask, p["thin_max_iterations"], p["thin_fraction"])
         if crop is None:
@@ -319,6 +319,7 @@ def model_detections(
         pts_cam = backproject(u, v, z, intr)
         pts_list.append(transform(T_map_camera, pts_cam))
         groups.append(np.full(len(z), len(sources)))
+        weights.append(np.full(len(z), float(stride * stride)))
         sources.append(i)
     empty = ModeledDetections(
         Boxes(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 8), bool)),
@@ -328,7 +329,11 @@ def model_detections(
         return empty
     points = np.concatenate(pts_list)
     group = np.concatenate(groups)
-    clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"], p.get("stack_gap"))
+    # pixel_weights: a subsampled point stands for the stride^2 pixels around it, so DBSCAN's
+    # density is the whole mask's (as if every pixel were clustered, the paper's); counted once, a
+    # large mask's sparse parts (a bed top at a grazing angle, 10 cm between points) are noise.
+    w = np.concatenate(weights) if p.get("pixel_weights") else None
+    clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"], p.get("stack_gap"), w)
     centers, yaws, sizes, src, npts, gaps = [], [], [], [], [], []
     for g, idx in enumerate(clusters):
         if idx is None:
