@@ -26,6 +26,7 @@ class ModelingSettings(TypedDict):
     clustering: str
     stack_gap: Optional[float]
     pixel_weights: bool
+    floor_band: Optional[float]
     eps: float
     min_samples: int
     min_extent: float
@@ -52,6 +53,9 @@ class AssociationSettings(TypedDict):
     merge_other_class_iou: Optional[float]
     merge_partial_defined_gap: Optional[float]
     merge_partial_defined_volume: float
+    stand_gap: Optional[float]
+    merge_min_overlap: Optional[float]
+    stand_margin: float
     merge_containment: Optional[float]
     merge_current_box: bool
     merge_id_by_label: bool

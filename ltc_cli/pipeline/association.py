@@ -200,7 +200,8 @@ def containing_candidate(inside: np.ndarray, same_class: np.ndarray, need_same: 
 def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other: float,
                     need_same: float | None, need_other: float | None,
                     other_volume_ratio: float | None = None, reach: float | None = None,
-                    other_scale: float | None = None) -> list[tuple[float, int, int]]:
+                    other_scale: float | None = None, min_overlap: float | None = None,
+                    defined: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -239,6 +240,16 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
         dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
         caps = None if other_scale is None else other_scale * np.maximum(halves[a], halves[rest])  # other_class_caps
         close = dist <= thresholds_for(int(top[a]), top[rest], same, other, caps)
+        if min_overlap is not None and close.any():
+            # eq. 2 over the vertices visible in both: a partial box's visible corners can sit on
+            # its neighbour's (two monitors edge to edge); one object's pieces share their ground.
+            foot = boxes.corners[:, :4, :2]
+            inter = convex_intersection_area(np.repeat(foot[a:a + 1], rest.size, axis=0), foot[rest])
+            area = boxes.size[:, 0] * boxes.size[:, 1]
+            apart = inter < min_overlap * np.minimum(area[a], area[rest])
+            if defined is not None:  # all 8 vertices of two Defined boxes are compared
+                apart &= ~(defined[a] & defined[rest])
+            close &= ~apart
         if need_same:
             close |= contained[a, rest]
         pairs.extend((float(dist[b]), a, int(rest[b])) for b in np.flatnonzero(close))
@@ -365,6 +376,38 @@ def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, fi
     return sorted(out)
 
 
+def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: float = 0.05,
+                min_cover: float = 0.5) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view, top classes (M,)) in which a smaller object of another
+    class stands right under a larger one: its top within ``max_gap`` metres of the other's bottom,
+    its bottom lower, and at least ``min_cover`` of its footprint under the other's footprint grown
+    by ``margin`` per side. [(gap, a, b)], a < b, closest first; none when ``max_gap`` is None.
+
+    It is the larger object's own lower part under another label: YOLOv8n calls a monitor's foot
+    "mouse" (tum-fr1-rpy: two feet under the two monitors, detected 27 and 33 times). Separate
+    things rest on what is under them (a cup on a table is above it); nothing else stands in the
+    hand's breadth under a monitor's screen.
+    """
+    m = len(boxes)
+    if max_gap is None or m < 2:
+        return []
+    z0 = boxes.center[:, 2] - boxes.size[:, 2] / 2
+    z1 = boxes.center[:, 2] + boxes.size[:, 2] / 2
+    vol = np.prod(boxes.size, axis=1)
+    area = boxes.size[:, 0] * boxes.size[:, 1]
+    grown = Boxes(boxes.center, boxes.yaw, boxes.size + np.array([2 * margin, 2 * margin, 0.0]),
+                  np.zeros((m, 8), bool))
+    gap = np.abs(z0[None, :] - z1[:, None])  # [a, b]: a's top to b's bottom
+    ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & (gap <= max_gap) \
+        & (z0[:, None] < z0[None, :])
+    out = []
+    for a, b in zip(*np.nonzero(ok)):
+        cover = convex_intersection_area(boxes.corners[a:a + 1, :4, :2], grown.corners[b:b + 1, :4, :2])[0] / area[a]
+        if cover >= min_cover:
+            out.append((float(gap[a, b]), min(int(a), int(b)), max(int(a), int(b))))
+    return sorted(out)
+
+
 def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: float | None = None,
                 defined: np.ndarray | None = None, first_session: np.ndarray | None = None
                 ) -> list[tuple[float, int, int]]:
@@ -379,7 +422,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                             overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
-                            a_cfg["other_class_scale"])
+                            a_cfg["other_class_scale"], a_cfg.get("merge_min_overlap"), defined)
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

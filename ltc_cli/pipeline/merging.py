@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.geometry.camera import invert_pose
-from ltc_cli.map.model import MERGED, top_class
-from ltc_cli.pipeline.association import greedy_merges, label_survivor, match_reach, merge_pairs
+from ltc_cli.map.model import ACTIVE, MERGED, top_class
+from ltc_cli.pipeline.association import greedy_merges, label_survivor, match_reach, merge_pairs, stand_pairs
 from ltc_cli.pipeline.integration import label_weight, merge_objects, merged_box, merged_scores, stale_side
 
 
@@ -30,6 +30,28 @@ class InstanceMerging:
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
+        return len(merges) + self._merge_stands(rows[t.status[rows] == ACTIVE], frame_index, frame_key)
+
+    def _merge_stands(self, rows: np.ndarray, frame_index, frame_key) -> int:
+        """A smaller object standing right under a larger one of another class is its lower part
+        (:func:`stand_pairs`): the larger keeps its id, box and class vector; the part's label says
+        what the detector calls the part, not what the whole is."""
+        a_cfg = self.cfg["association"]
+        if a_cfg.get("stand_gap") is None or rows.size < 2:
+            return 0
+        t = self.map.objects
+        vol = np.prod(t.size[rows], axis=1)
+        pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"])
+        merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
+        for keep, drop in merges:
+            keep, drop = int(rows[keep]), int(rows[drop])
+            self.rates.touch(keep)
+            self.rates.touch(drop)
+            for col in ("n_det", "n_clear"):
+                t.cols[col][keep] += t.cols[col][drop]
+            self._seen(keep, frame_index)
+            self._set_status(drop, MERGED)
+            self._log(frame_index, frame_key, "merged", keep + 1, drop + 1)
         return len(merges)
 
     def _merge_weights(self, older: int, newer: int) -> tuple[float, float]:

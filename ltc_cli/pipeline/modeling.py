@@ -312,12 +312,20 @@ def model_detections(
         u, v, z, stride = mask_pixels(crop, r0, c0, depth_m, p["max_points"], min_d, max_d, p["edge_jump"])
         if len(z) < p["min_samples"]:
             continue
+        pts_map = transform(T_map_camera, backproject(u, v, z, intr))
+        band = p.get("floor_band")
+        if band is not None and floor_z is not None and grounded is not None and grounded[i]:
+            # Furniture stands on the floor, so its mask's pixels within a few cm of the floor are
+            # the floor it bled onto (or its legs' last cm, which ground_to_floor gives back).
+            above = pts_map[:, 2] >= floor_z + band
+            if above.sum() < p["min_samples"]:
+                continue
+            pts_map, z = pts_map[above], z[above]
         # Pixels lost at each side: the thinning band, and on average half a subsampling step.
         pads.append((k + (stride - 1) / 2.0, float(np.median(z))))
         backs.append(_background_gap(depth_m, (r0, r0 + crop.shape[0] - 1), (c0, c0 + crop.shape[1] - 1),
                                      pads[-1][1]))
-        pts_cam = backproject(u, v, z, intr)
-        pts_list.append(transform(T_map_camera, pts_cam))
+        pts_list.append(pts_map)
         groups.append(np.full(len(z), len(sources)))
         weights.append(np.full(len(z), float(stride * stride)))
         sources.append(i)

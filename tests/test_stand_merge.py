@@ -1,0 +1,110 @@
+"""A monitor's foot called "mouse" is the monitor's lower part (association stand_gap / stand_margin),
+and a partial box does not merge with the neighbour its visible corners touch (merge_min_overlap);
+issue 9, eleventh round, tum-fr1-rpy. Expected values are worked out by hand."""
+
+import numpy as np
+import pytest
+
+from ltc_cli import plugins
+from ltc_cli.config import defaults
+from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
+from ltc_cli.pipeline.association import duplicate_pairs, stand_pairs
+from ltc_cli.pipeline.mapper import Mapper
+from tests.scene import INTR, T_world_camera
+from tests.test_identity import CLASSES
+
+TV, MOUSE, CUP, TABLE = 1, 2, 3, 4
+
+# All axis-aligned (yaw 0); footprints x range, y range; z range:
+# 0 tv     x 2.15..2.25  y -0.27..0.27  z 1.025..1.375   (a screen 0.54 wide, 0.1 deep, 0.35 tall)
+# 1 mouse  x 2.13..2.27  y -0.12..0.12  z 0.965..1.005   under 0: its top 0.02 below 0's bottom; its
+#          footprint 0.14 x 0.24, of which 0.10 x 0.24 under 0 and all under 0 grown by 0.05 per side
+# 2 cup    x 2.15..2.25  y  0.60..0.70  z 0.965..1.005   as 1 but beside 0: 0.33 from 0's footprint
+# 3 cup    x 2.10..2.20  y -0.05..0.05  z 0.80..0.90     under 1 and 0, 0.065 and 0.125 below their bottoms
+# 4 table  x 1.60..2.80  y -0.50..0.50  z 0.00..0.75     under all of them, larger than 0
+# 5 cup    x 2.15..2.25  y -0.05..0.05  z 0.75..0.87     on the table (4): above it, smaller
+CENTER = [[2.2, 0, 1.2], [2.2, 0, 0.985], [2.2, 0.65, 0.985], [2.15, 0, 0.85], [2.2, 0, 0.375], [2.2, 0, 0.81]]
+SIZE = [[0.1, 0.54, 0.35], [0.14, 0.24, 0.04], [0.1, 0.1, 0.04], [0.1, 0.1, 0.10], [1.2, 1.0, 0.75],
+        [0.1, 0.1, 0.12]]
+TOP = np.array([TV, MOUSE, CUP, CUP, TABLE, CUP])
+
+
+def boxes(rows=None) -> Boxes:
+    rows = list(range(len(CENTER))) if rows is None else rows
+    return Boxes(np.array(CENTER, float)[rows], np.zeros(len(rows)), np.array(SIZE, float)[rows],
+                 np.ones((len(rows), 8), bool))
+
+
+def test_stand_pairs_by_hand():
+    pairs = stand_pairs(boxes(), TOP, 0.05, 0.05)
+    # Only the foot under the screen: 2 is beside it, 3 too far below both, 5 stands on the table
+    # (above it), and 3 and 5 are not under the table either: their bottoms are above its bottom.
+    assert [(a, b) for _, a, b in pairs] == [(0, 1)]
+    assert pairs[0][0] == pytest.approx(0.02)
+    # Without the margin 0.10 of the foot's 0.14 lie under the screen: 0.71 >= 0.5, still a pair;
+    # asking for 0.75 of it, none.
+    assert [(a, b) for _, a, b in stand_pairs(boxes(), TOP, 0.05, 0.0)] == [(0, 1)]
+    assert stand_pairs(boxes(), TOP, 0.05, 0.0, min_cover=0.75) == []
+    # A gap of 0.11 m takes the cups 0.065 (3) and 0.095 (5) under the foot too, not 3 at 0.125
+    # under the screen (5 sits on the table, 0.155 under the screen).
+    assert sorted((a, b) for _, a, b in stand_pairs(boxes(), TOP, 0.11, 0.05)) == [(0, 1), (1, 3), (1, 5)]
+    # One class for both: the same object's parts are for eq. 2 and containment, not this rule.
+    assert stand_pairs(boxes([0, 1]), np.array([TV, TV]), 0.05, 0.05) == []
+    assert stand_pairs(boxes(), TOP, None, 0.05) == []
+
+
+def test_a_partial_box_does_not_merge_with_the_neighbour_its_corners_touch():
+    """Two monitors edge to edge: eq. 2 over the vertices visible in both can be small (here a
+    distance of 0 stands for it) while their footprints share 0.02 x 0.1 = 0.002 m², 0.04 of
+    either's 0.05 m²."""
+    pair = Boxes(np.array([[0.0, 0, 1], [0.48, 0, 1]]), np.zeros(2), np.array([[0.5, 0.1, 0.4]] * 2),
+                 np.ones((2, 8), bool))
+    top = np.array([TV, TV])
+
+    def zero(one, many):
+        return np.zeros(len(many))
+
+    def merged(min_overlap, defined):
+        return [(a, b) for _, a, b in duplicate_pairs(pair, top, zero, 0.4, 0.25, None, None,
+                                                      min_overlap=min_overlap, defined=np.array(defined))]
+
+    assert merged(None, [False, True]) == [(0, 1)]       # the paper: the distance alone
+    assert merged(0.2, [False, True]) == []               # one partial: 0.04 < 0.2 of the footprint
+    assert merged(0.2, [True, True]) == [(0, 1)]          # both Defined: all 8 vertices were compared
+    assert merged(0.03, [False, False]) == [(0, 1)]       # 0.04 >= 0.03
+
+
+@pytest.mark.parametrize("gap", [None, 0.05])
+def test_the_foot_joins_the_screen_which_keeps_its_box_label_and_id(gap):
+    """A map with the screen (0, detected 40 times) and its foot (1, "mouse", 60 times: more often
+    than the screen, as on tum-fr1-rpy) in view of a frame with no detections (static policy: no
+    non-detections): with the rule on, the foot is merged into the screen, whose box and class vector
+    stay as they were (the foot's label names a part, so eq. 3 does not weigh it), and whose detection
+    count is 100; with it off, both stay."""
+    cfg = defaults()
+    cfg["association"]["stand_gap"] = gap
+    cfg["association"]["stand_margin"] = 0.05
+    smap = SemanticMap.new(CLASSES)
+    vectors = []
+    for i, n_det in ((0, 40), (1, 60)):
+        v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
+        v[TOP[i]], v[-1] = 0.9, 0.0
+        vectors.append(v)
+        smap.objects.append(center=np.array(CENTER[i], float), yaw=0.0, size=np.array(SIZE[i], float),
+                            visible=np.ones(8, bool), defined=True, scores=v, n_det=n_det, status=ACTIVE)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    t = mapper.map.objects
+    if gap is None:
+        assert res.merged == 0 and list(t.status[:2]) == [ACTIVE, ACTIVE]
+        return
+    assert res.merged == 1
+    assert list(t.status[:2]) == [ACTIVE, MERGED]
+    assert t.n_det[0] == 100
+    np.testing.assert_allclose(t.center[0], CENTER[0])
+    np.testing.assert_allclose(t.size[0], SIZE[0])
+    np.testing.assert_allclose(t.scores[0], vectors[0])
+    assert [(e.kind, e.object_id, e.other_id) for e in mapper.map.events if e.kind == "merged"] == [("merged", 1, 2)]
