@@ -26,7 +26,6 @@ class ModelingSettings(TypedDict):
     clustering: str
     stack_gap: Optional[float]
     pixel_weights: bool
-    floor_band: Optional[float]
     eps: float
     min_samples: int
     min_extent: float

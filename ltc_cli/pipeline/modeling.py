@@ -313,14 +313,6 @@ def model_detections(
         if len(z) < p["min_samples"]:
             continue
         pts_map = transform(T_map_camera, backproject(u, v, z, intr))
-        band = p.get("floor_band")
-        if band is not None and floor_z is not None and grounded is not None and grounded[i]:
-            # Furniture stands on the floor, so its mask's pixels within a few cm of the floor are
-            # the floor it bled onto (or its legs' last cm, which ground_to_floor gives back).
-            above = pts_map[:, 2] >= floor_z + band
-            if above.sum() < p["min_samples"]:
-                continue
-            pts_map, z = pts_map[above], z[above]
         # Pixels lost at each side: the thinning band, and on average half a subsampling step.
         pads.append((k + (stride - 1) / 2.0, float(np.median(z))))
         backs.append(_background_gap(depth_m, (r0, r0 + crop.shape[0] - 1), (c0, c0 + crop.shape[1] - 1),
