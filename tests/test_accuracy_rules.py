@@ -9,7 +9,7 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
-from ltc_cli.pipeline.association import relabel_pairs
+from ltc_cli.pipeline.deduplication import relabel_pairs
 from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame
 from ltc_cli.pipeline.integration import label_weight
 from ltc_cli.pipeline.maintenance import found_again

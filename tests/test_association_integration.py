@@ -148,7 +148,7 @@ def test_vertex_distance_is_never_below_the_centre_bound():
 
 
 def test_duplicate_pairs_with_reach_are_those_of_every_pair():
-    from ltc_cli.pipeline.association import duplicate_pairs
+    from ltc_cli.pipeline.deduplication import duplicate_pairs
 
     rng = np.random.default_rng(12)
     metric = lambda det, cands: vertex_distance(det, cands)[0]  # noqa: E731

@@ -8,7 +8,7 @@ import pytest
 from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap, top_class
-from ltc_cli.pipeline.association import greedy_merges, label_survivor
+from ltc_cli.pipeline.deduplication import greedy_merges, label_survivor
 from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame, relabel_too_tall
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render

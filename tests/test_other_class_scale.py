@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.pipeline.association import duplicate_pairs, other_class_caps, thresholds_for
+from ltc_cli.pipeline.association import other_class_caps, thresholds_for
+from ltc_cli.pipeline.deduplication import duplicate_pairs
 
 
 def test_caps_by_hand():

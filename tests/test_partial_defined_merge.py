@@ -7,7 +7,7 @@ import pytest
 from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.pipeline.association import merge_pairs, partial_defined_pairs
+from ltc_cli.pipeline.deduplication import merge_pairs, partial_defined_pairs
 
 CHAIR, TABLE = 0, 3
 

@@ -9,7 +9,7 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
-from ltc_cli.pipeline.association import duplicate_pairs, stand_pairs
+from ltc_cli.pipeline.deduplication import duplicate_pairs, stand_pairs
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera
 from tests.test_identity import CLASSES

@@ -1,7 +1,7 @@
 """Instance de-duplication (DESIGN.md 1.2): after a frame, the map objects in view that now match
 each other become one. A part of :class:`~ltc_cli.pipeline.mapper.Mapper`, kept in its own file:
 the decisions (which pairs merge, which one keeps its id, the merged box and class vector) come
-from association.py and integration.py; these methods apply them to the object table and log them.
+from deduplication.py and integration.py; these methods apply them to the object table and log them.
 """
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ import numpy as np
 
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, top_class
-from ltc_cli.pipeline.association import greedy_merges, label_survivor, match_reach, merge_pairs, stand_pairs
+from ltc_cli.pipeline.association import match_reach
+from ltc_cli.pipeline.deduplication import greedy_merges, label_survivor, merge_pairs, stand_pairs
 from ltc_cli.pipeline.integration import label_weight, merge_objects, merged_box, merged_scores, stale_side
 
 

@@ -1,0 +1,210 @@
+"""Instance de-duplication (DESIGN.md 1.2, the end of stage 2): which in-view map objects are one
+object and merge after a frame, and which of two keeps its id. Pure numpy over boxes; the mapper's
+merge step (merging.py) applies these decisions.
+
+Eq. 2 and containment find duplicates of one class (the paper); the other rules here find one object
+under two labels, a later partial view of a Defined object, and a part standing under its object.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
+from ltc_cli.pipeline.association import (
+    footprint_gaps, half_diagonals, pairwise_containment, similar_volume, thresholds_for,
+)
+
+
+def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other: float,
+                    need_same: float | None, need_other: float | None,
+                    other_volume_ratio: float | None = None, reach: float | None = None,
+                    other_scale: float | None = None, min_overlap: float | None = None,
+                    defined: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
+    sorted by distance (the closest pairs merge first).
+
+    ``distance(one, many)`` is the association metric. Two objects match when their distance is
+    under the threshold of their classes, or, with containment on, when one lies mostly inside the
+    other (one object seen in parts); objects of different classes only when of similar volume
+    (``other_volume_ratio``, :func:`similar_volume`).
+
+    ``reach``: the metric's distance is never less than the boxes' centre distance less their half
+    diagonals (:func:`within_reach`); then only pairs within ``reach`` metres beyond that are
+    compared (the same pairs result). None: every pair.
+    """
+    m = len(boxes)
+    if m < 2:
+        return []
+    near = None
+    if reach is not None:
+        radii = half_diagonals(boxes.size)
+        near = np.linalg.norm(boxes.center[:, None] - boxes.center[None], axis=-1) <= \
+            radii[:, None] + radii[None] + max(same, other, reach) + 1e-6  # within_reach, all pairs at once
+    if need_same:
+        inside = pairwise_containment(boxes, near)
+        inside = np.maximum(inside, inside.T)  # either one inside the other
+        vol = np.prod(boxes.size, axis=1)
+        other_ok = np.where(similar_volume(vol[:, None], vol[None, :], other_volume_ratio), need_other or np.inf, np.inf)
+        need = np.where(top[:, None] == top[None, :], need_same, other_ok)
+        contained = inside >= need
+    halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the other-class caps
+    pairs = []
+    for a in range(m - 1):
+        rest = np.arange(a + 1, m)
+        if near is not None:
+            rest = rest[near[a, rest]]
+            if rest.size == 0:
+                continue
+        dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
+        caps = None if other_scale is None else other_scale * np.maximum(halves[a], halves[rest])  # other_class_caps
+        close = dist <= thresholds_for(int(top[a]), top[rest], same, other, caps)
+        if min_overlap is not None and close.any():
+            # eq. 2 over the vertices visible in both: a partial box's visible corners can sit on
+            # its neighbour's (two monitors edge to edge); one object's pieces share their ground.
+            foot = boxes.corners[:, :4, :2]
+            inter = convex_intersection_area(np.repeat(foot[a:a + 1], rest.size, axis=0), foot[rest])
+            area = boxes.size[:, 0] * boxes.size[:, 1]
+            apart = inter < min_overlap * np.minimum(area[a], area[rest])
+            if defined is not None:  # all 8 vertices of two Defined boxes are compared
+                apart &= ~(defined[a] & defined[rest])
+            close &= ~apart
+        if need_same:
+            close |= contained[a, rest]
+        pairs.extend((float(dist[b]), a, int(rest[b])) for b in np.flatnonzero(close))
+    return sorted(pairs)
+
+
+def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray, survivor=None) -> list[tuple[int, int]]:
+    """(keep, drop) index pairs from :func:`duplicate_pairs`, closest first, each object at most
+    once dropped. The older object (smaller id) keeps its id, unless ``survivor(older, newer)``
+    (indices) names the newer one (see :func:`label_survivor`)."""
+    gone: set = set()
+    out = []
+    for _, a, b in pairs:
+        if a in gone or b in gone:
+            continue
+        older, newer = (a, b) if ids[a] < ids[b] else (b, a)
+        keep = survivor(older, newer) if survivor is not None else older
+        drop = newer if keep == older else older
+        out.append((keep, drop))
+        gone.add(drop)
+    return out
+
+
+def label_survivor(top_older: int, top_newer: int, top_merged: int, by_label: bool) -> bool:
+    """True when, of two map objects that merge, the newer one keeps its id: the two had different
+    top classes and the merged class vector names the newer one's. The user knows the map by
+    "tv 2"; when a monitor's foot, mapped first as "mouse 1", joins it, "tv 2" is the object that is
+    still there. by_label False: the older id always stays (the paper's de-duplication keeps one)."""
+    return bool(by_label and top_older != top_newer and top_merged == top_newer)
+
+
+def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_volume_ratio: float | None
+                  ) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view) of different top classes that are one object under two
+    labels: footprints overlapping by XY IoU at least ``min_iou`` and volumes similar
+    (:func:`similar_volume`). [(1 - IoU, a, b)], a < b, the most overlapping first; none when
+    ``min_iou`` is None.
+
+    A detector that calls a chair "couch" in runs of nearby views makes a couch object beside the
+    chair object: the other-class threshold of eq. 2 is tighter and the two boxes, each from a few
+    views, rarely share vertices closely enough. Sitting on the same footprint with a similar volume,
+    they are one thing; which label it gets is for the class evidence to say (eq. 3).
+    """
+    m = len(boxes)
+    if min_iou is None or m < 2:
+        return []
+    iou, _ = pairwise_ious_arrays(boxes.center, boxes.yaw, boxes.size, boxes.center, boxes.yaw, boxes.size)
+    vol = np.prod(boxes.size, axis=1)
+    ok = (iou >= min_iou) & (top[:, None] != top[None, :]) & similar_volume(vol[:, None], vol[None, :],
+                                                                         other_volume_ratio)
+    a, b = np.nonzero(np.triu(ok, 1))
+    return sorted((1.0 - float(iou[i, j]), int(i), int(j)) for i, j in zip(a, b))
+
+
+def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, first_session: np.ndarray,
+                          max_gap: float | None, min_volume: float = 1.0) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view, top classes (M,), Defined flags (M,) bool, sessions of
+    their first detection (M,)) in which a partial object is the later view of a Defined object of
+    its class: first detected in a later session, at least ``min_volume`` times its volume, and with
+    a footprint within ``max_gap`` metres of it (:func:`footprint_gaps`, z ranges overlapping).
+    [(gap, a, b)], a < b, nearest first; none when ``max_gap`` is None.
+
+    On a revisit, a view of a complete object cut by the image border makes a partial box grown
+    along the axis it did not see (a 0.5 m chair became a 1.4 m box beside it on tum-fr1-rpy): too
+    far by eq. 2, not enough inside to merge by containment, but touching it. A partial box never
+    reshapes a Defined one (DESIGN.md 1.3), so the merge costs the complete box nothing. Within one
+    session the same picture is as often a second object not yet seen whole (chairs side by side
+    at a table: the simulator lost a chair so), hence the later session; a smaller partial box is
+    for containment to judge, hence the volume.
+    """
+    m = len(boxes)
+    if max_gap is None or m < 2:
+        return []
+    vol = np.prod(boxes.size, axis=1)
+    out = []
+    for a in np.flatnonzero(~defined):
+        rest = np.flatnonzero(defined & (top == top[a]) & (first_session < first_session[a])
+                              & (vol[a] >= min_volume * vol))
+        if rest.size == 0:
+            continue
+        gaps = footprint_gaps(boxes.take(slice(int(a), int(a) + 1)), boxes.take(rest))
+        out.extend((float(g), min(int(a), int(b)), max(int(a), int(b))) for g, b in zip(gaps, rest) if g <= max_gap)
+    return sorted(out)
+
+
+def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: float = 0.05,
+                min_cover: float = 0.5) -> list[tuple[float, int, int]]:
+    """Pairs of map objects (M boxes in view, top classes (M,)) in which a smaller object of another
+    class stands right under a larger one: its top within ``max_gap`` metres of the other's bottom,
+    its bottom lower, and at least ``min_cover`` of its footprint under the other's footprint grown
+    by ``margin`` per side. [(gap, a, b)], a < b, closest first; none when ``max_gap`` is None.
+
+    It is the larger object's own lower part under another label: YOLOv8n calls a monitor's foot
+    "mouse" (tum-fr1-rpy: two feet under the two monitors, detected 27 and 33 times). Separate
+    things rest on what is under them (a cup on a table is above it); nothing else stands in the
+    hand's breadth under a monitor's screen.
+    """
+    m = len(boxes)
+    if max_gap is None or m < 2:
+        return []
+    z0 = boxes.center[:, 2] - boxes.size[:, 2] / 2
+    z1 = boxes.center[:, 2] + boxes.size[:, 2] / 2
+    vol = np.prod(boxes.size, axis=1)
+    area = boxes.size[:, 0] * boxes.size[:, 1]
+    grown = Boxes(boxes.center, boxes.yaw, boxes.size + np.array([2 * margin, 2 * margin, 0.0]),
+                  np.zeros((m, 8), bool))
+    gap = np.abs(z0[None, :] - z1[:, None])  # [a, b]: a's top to b's bottom
+    ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & (gap <= max_gap) \
+        & (z0[:, None] < z0[None, :])
+    out = []
+    for a, b in zip(*np.nonzero(ok)):
+        cover = convex_intersection_area(boxes.corners[a:a + 1, :4, :2], grown.corners[b:b + 1, :4, :2])[0] / area[a]
+        if cover >= min_cover:
+            out.append((float(gap[a, b]), min(int(a), int(b)), max(int(a), int(b))))
+    return sorted(out)
+
+
+def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: float | None = None,
+                defined: np.ndarray | None = None, first_session: np.ndarray | None = None
+                ) -> list[tuple[float, int, int]]:
+    """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
+    association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
+    inside the other by ``merge_containment``, default ``containment``), then one object under two
+    labels (:func:`relabel_pairs`, keys past any distance), then the later partial view of a Defined
+    object (:func:`partial_defined_pairs`, when ``defined`` and ``first_session`` (M,) are given).
+    The overlap rules all stand down with ``containment`` off (the paper: vertex distance only).
+    ``reach``: as for duplicate_pairs."""
+    overlap = a_cfg["containment"] is not None
+    pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
+                            overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
+                            a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
+                            a_cfg["other_class_scale"], a_cfg.get("merge_min_overlap"), defined)
+    two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
+                               a_cfg["other_class_volume_ratio"])
+    later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],
+                                  a_cfg["merge_partial_defined_volume"]) \
+        if overlap and defined is not None and first_session is not None else []
+    return pairs + [(1e6 + k, a, b) for k, a, b in two_labels] + [(2e6 + g, a, b) for g, a, b in later]
