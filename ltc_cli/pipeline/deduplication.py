@@ -163,9 +163,9 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     by ``margin`` per side. [(gap, a, b)], a < b, closest first; none when ``max_gap`` is None.
 
     It is the larger object's own lower part under another label: YOLOv8n calls a monitor's foot
-    "mouse" (tum-fr1-rpy: two feet under the two monitors, detected 27 and 33 times). Separate
-    things rest on what is under them (a cup on a table is above it); nothing else stands in the
-    hand's breadth under a monitor's screen.
+    "mouse" (tum-fr1-rpy: the front monitor's foot, 33 detections, 4.5 cm under the screen's box).
+    Separate things rest on what is under them (a cup on a table is above it); nothing else stands
+    in the hand's breadth under a monitor's screen.
     """
     m = len(boxes)
     if max_gap is None or m < 2:
