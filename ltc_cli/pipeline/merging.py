@@ -38,7 +38,7 @@ class InstanceMerging:
         (:func:`stand_pairs`): the larger keeps its id, box and class vector; the part's label says
         what the detector calls the part, not what the whole is."""
         a_cfg = self.cfg["association"]
-        if a_cfg.get("stand_gap") is None or rows.size < 2:
+        if a_cfg["stand_gap"] is None or rows.size < 2:
             return 0
         t = self.map.objects
         vol = np.prod(t.size[rows], axis=1)

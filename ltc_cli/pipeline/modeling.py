@@ -312,12 +312,12 @@ def model_detections(
         u, v, z, stride = mask_pixels(crop, r0, c0, depth_m, p["max_points"], min_d, max_d, p["edge_jump"])
         if len(z) < p["min_samples"]:
             continue
-        pts_map = transform(T_map_camera, backproject(u, v, z, intr))
         # Pixels lost at each side: the thinning band, and on average half a subsampling step.
         pads.append((k + (stride - 1) / 2.0, float(np.median(z))))
         backs.append(_background_gap(depth_m, (r0, r0 + crop.shape[0] - 1), (c0, c0 + crop.shape[1] - 1),
                                      pads[-1][1]))
-        pts_list.append(pts_map)
+        pts_cam = backproject(u, v, z, intr)
+        pts_list.append(transform(T_map_camera, pts_cam))
         groups.append(np.full(len(z), len(sources)))
         weights.append(np.full(len(z), float(stride * stride)))
         sources.append(i)
