@@ -76,6 +76,10 @@ def run_house(h: Path, laps: int, args):
     out, earlier, seen, before = [], [], set(), None
     with tempfile.TemporaryDirectory() as tmp:
         m = Path(tmp) / "map.h5"
+        if args.keep:
+            args.keep.mkdir(parents=True, exist_ok=True)
+            m = args.keep / f"{h.name}.h5"
+            m.unlink(missing_ok=True)
         for lap in range(1, laps + 1):
             cfg = load_config(args.config, ["association.metric=vertex", "maintenance.policy=non-detection",
                                             *args.sets])
@@ -102,6 +106,7 @@ def run_house(h: Path, laps: int, args):
 def main():
     ap = acc.house_arguments()
     ap.add_argument("--list", action="store_true", help="print every error with its house, class and cause")
+    ap.add_argument("--keep", type=Path, help="keep each house's map as DIR/<house>.h5 (after the last lap)")
     args = ap.parse_args()
     houses = [acc.house(args.scene, args.first_seed + i, (), args.laps, args.profile) for i in range(args.houses)]
     print(f"{args.houses} '{args.scene}' houses ({args.profile}), config {args.config or 'defaults'}, "

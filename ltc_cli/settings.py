@@ -87,6 +87,7 @@ class MaintenanceSettings(TypedDict):
     min_visible_fraction: Optional[float]
     min_pixels_floor: float
     min_visible_share: float
+    through_visible_share: float
     min_detections: int
     min_detection_share: Optional[float]
     min_detection_views: Optional[int]

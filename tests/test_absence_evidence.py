@@ -135,3 +135,30 @@ def test_a_miss_counts_only_where_the_depth_does_not_show_the_object(chair_there
     mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
     assert t.n_nondet[row] == nondets
     assert t.n_clear[row] == 1  # clearly visible either way
+
+
+# A screen at 1 m hides the left 60 % of the chair's place: in angle the place spans y/x from
+# -0.15 to 0.15 (0.3 m at 2 m), the screen -1.0 to 0.03 (y -1 to 0.03 m at 1 m), so 0.18 of 0.30.
+SCREEN = (1.0, 1.05, -1.0, 0.03, 0.0, 2.0)
+
+
+@pytest.mark.parametrize("share, expected, clear", [
+    (0.0, REMOVED, 6),   # the visible 40 % all show the wall behind the chair's place: it went
+    (0.5, ACTIVE, 0),    # as every other view: 40 % visible is under half, no clear view
+])
+def test_a_place_seen_empty_in_part_is_a_clear_view_for_the_absence_rule(share, expected, clear):
+    """maintenance.through_visible_share: the chair of session 0 was taken away; in 6 frames the
+    camera sees 40 % of its place, all of it through to the wall at 4 m. With the default 0 the
+    depth's word needs no half of the object in view, and the absence rule (5 views) removes it;
+    with min_visible_share's 0.5 none of the views is clear. Eq. 4 counts no miss either way (40 %
+    is under min_visible_share), so the removal is the absence rule's."""
+    depth, _ = render([SCREEN], wall_x=4.0)
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["through_visible_share"] = share
+    t, row, mapper = old_chair_in_session_1(cfg)
+    for k in range(6):
+        mapper.process_frame(k, str(k), [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.clear_since_det[row] == clear and t.n_nondet[row] == 0
+    mapper.prune_unconfirmed(2, -1, "end", None)
+    assert t.status[row] == expected

@@ -42,13 +42,15 @@ class ViewCounts(NamedTuple):
     """What a frame's camera saw of each box in view, (M,) each: ``visible`` pixels, the ``needed``
     pixels for a non-detection, the ``empty`` ones (seen beyond the box's far side), the visible
     pixels for the absence rule (``visible_absent``) and of those the ones seen past the box's
-    middle (``through_absent``; None when the absence rule does not ask for them)."""
+    middle (``through_absent``; None when the absence rule does not ask for them), and the pixels
+    the absence rule needs of a view that saw through the box (``needed_through``)."""
 
     visible: np.ndarray
     needed: np.ndarray
     empty: np.ndarray
     visible_absent: np.ndarray
     through_absent: np.ndarray | None
+    needed_through: np.ndarray
 
 
 def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, intr: Intrinsics,
@@ -66,10 +68,11 @@ def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, int
         hide_needs_depth=m_cfg["hide_needs_depth"], past_middle=m_cfg["through_margin"] if through else None)
     vis_px, proj_px, empty_px = counts[:3]
     scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
-    need = required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
-                           m_cfg["min_pixels_floor"] * scale, m_cfg["min_visible_share"])
+    need, need_through = (required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
+                                          m_cfg["min_pixels_floor"] * scale, share)
+                          for share in (m_cfg["min_visible_share"], m_cfg["through_visible_share"]))
     vis_absent = counts[3] if whole == "absence" else vis_px
-    return ViewCounts(vis_px, need, empty_px, vis_absent, counts[-1] if through else None)
+    return ViewCounts(vis_px, need, empty_px, vis_absent, counts[-1] if through else None, need_through)
 
 
 def count_absence_views(cols: dict, rows: np.ndarray, clear_absent: np.ndarray, matched: np.ndarray,

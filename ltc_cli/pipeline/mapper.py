@@ -214,8 +214,8 @@ class Mapper(InstanceMerging):
         whole-box rule); and which of those the camera saw through (absent_through_share of the
         pixels past the box's middle)."""
         m_cfg = self.cfg["maintenance"]
-        vis_px, need, empty_px, vis_absent, through_px = view_counts(self.map.objects.boxes(rows), T_map_camera,
-                                                                     depth_m, intr, depth_range, m_cfg)
+        vis_px, need, empty_px, vis_absent, through_px, need_through = view_counts(
+            self.map.objects.boxes(rows), T_map_camera, depth_m, intr, depth_range, m_cfg)
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
         if m_cfg["spare_frames"] is not None:
             t = self.map.objects
@@ -233,7 +233,10 @@ class Mapper(InstanceMerging):
             t.cols["nondet_view"][rows[missed]] = view
         through = seen_empty(vis_absent, through_px, m_cfg["absent_through_share"]) if through_px is not None \
             else np.zeros(len(rows), dtype=bool)
-        return missed, vis_px >= need, empty, vis_absent >= need, through
+        # Where the camera saw through most of what it saw of the box, the depth says the place is
+        # empty: that is no detector's silence, and a part of the box is enough to say so.
+        clear_absent = (vis_absent >= need) | (through & (vis_absent >= need_through))
+        return missed, vis_px >= need, empty, clear_absent, through
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
                           min_share: float | None = None) -> int:
