@@ -40,9 +40,12 @@ from ltc_cli.map.store import load_map  # noqa: E402
 SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
 
 # What is in view, from the recordings' READMEs: (fewest, most) per class; classes not listed
-# should not be in the map at all (person never). The READMEs count by eye: "a few" books.
+# should not be in the map at all (person never). The READMEs count by eye: "a few" books. One
+# departure: tum-fr1-rpy's README counts three monitors; the frames show a fourth right behind the
+# front one, its top edge above it in frames 56-230 (docs/decisions.md, issue 9 tenth and twelfth
+# rounds), so up to 4 tvs are right.
 TRUTH = {
-    "tum-fr1-rpy": {"tv": (2, 3), "keyboard": (1, 2), "mouse": (1, 2), "cup": (1, 2), "book": (0, 4),
+    "tum-fr1-rpy": {"tv": (2, 4), "keyboard": (1, 2), "mouse": (1, 2), "cup": (1, 2), "book": (0, 4),
                     "chair": (1, 2), "laptop": (0, 0), "person": (0, 0), "dining table": (0, 2)},
     "dining-room": {"dining table": (1, 1), "chair": (1, 9), "couch": (1, 1), "person": (0, 0)},
 }

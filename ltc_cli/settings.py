@@ -32,6 +32,8 @@ class ModelingSettings(TypedDict):
     thin_extent: float
     class_depth: dict[str, float]
     taller_than: dict[str, dict]
+    wider_than: dict[str, dict]
+    max_depth_ratio: Optional[float]
     floor_classes: list[str]
     ground_max_gap: float
     border: int

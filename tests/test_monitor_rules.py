@@ -42,6 +42,7 @@ def test_stage_1_calls_a_laptop_taller_than_any_laptop_a_tv(z_top, expected):
     both stay laptops."""
     cfg = defaults()
     cfg["modeling"]["taller_than"] = {"laptop": {"height": 0.35, "is": "tv"}}
+    cfg["modeling"]["wider_than"] = {}  # 0.6 m is wider than any laptop too (tests/test_screen_rules.py)
     depth, masks = render([(2.0, 2.05, -0.3, 0.3, 0.8, z_top)], wall_x=4.0)
     flags = ClassFlags.from_settings(CLASSES, cfg)
     out = model_frame(masks, [vector(LAPTOP, 0.6)], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags)

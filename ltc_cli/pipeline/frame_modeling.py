@@ -29,7 +29,8 @@ class ClassFlags:
     moving: never a map object (people, animals); grounded: stands on the floor; depth_prior: the
     typical depth of a one-view slab (NaN: none); max_height: the height a box of the class is
     never taller than (inf: none), and taller_is: the class such a box is then (-1: none;
-    NEXT: the detection's own next most likely class).
+    NEXT: the detection's own next most likely class); max_width and wider_is: the same for the
+    longer side of the box's footprint.
     """
 
     moving: np.ndarray
@@ -37,6 +38,8 @@ class ClassFlags:
     depth_prior: np.ndarray
     max_height: np.ndarray | None = None
     taller_is: np.ndarray | None = None
+    max_width: np.ndarray | None = None
+    wider_is: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
@@ -44,15 +47,18 @@ class ClassFlags:
         floor = set(config["modeling"]["floor_classes"] or [])
         priors = config["modeling"]["class_depth"] or {}
         pos = {c: i for i, c in enumerate(classes)}
-        # A rule naming a class the map does not hold has nothing to act on.
-        tall = {c: r for c, r in (config["modeling"].get("taller_than") or {}).items()
-                if c in pos and (r["is"] == "next" or r["is"] in pos)}
+        def bounds(key: str, field: str) -> tuple[np.ndarray, np.ndarray]:
+            # A rule naming a class the map does not hold has nothing to act on.
+            rules = {c: r for c, r in (config["modeling"].get(key) or {}).items()
+                     if c in pos and (r["is"] == "next" or r["is"] in pos)}
+            return (np.array([float(rules[c][field]) if c in rules else np.inf for c in classes] + [np.inf]),
+                    np.array([-1 if c not in rules else NEXT if rules[c]["is"] == "next" else pos[rules[c]["is"]]
+                              for c in classes] + [-1]))
+
         return cls(np.array([c in moving for c in classes] + [False]),
                    np.array([c in floor for c in classes] + [False]),
                    np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]),
-                   np.array([float(tall[c]["height"]) if c in tall else np.inf for c in classes] + [np.inf]),
-                   np.array([-1 if c not in tall else NEXT if tall[c]["is"] == "next" else pos[tall[c]["is"]]
-                             for c in classes] + [-1]))
+                   *bounds("taller_than", "height"), *bounds("wider_than", "width"))
 
 
 @dataclass
@@ -104,16 +110,38 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,
                                class_depth=flags.depth_prior[top])
+    ratio = config["modeling"].get("max_depth_ratio")
+    if ratio is not None and len(modeled.source):
+        modeled = drop_deep_slabs(modeled, flags.depth_prior[top[modeled.source]], ratio)
     scores = list(scores)
     if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
         scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, 2], flags.max_height, flags.taller_is)
+    if flags.max_width is not None and np.isfinite(flags.max_width).any() and len(modeled.source):
+        # A box is seen narrower than its object (a part of it), never wider: a 0.56 m wide
+        # "laptop" is no laptop (tum-fr1-rpy's fourth monitor, only its top edge in view).
+        scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, :2].max(axis=1), flags.max_width,
+                                  flags.wider_is)
     return FrameModel(detections, scores, modeled)
+
+
+def drop_deep_slabs(modeled: ModeledDetections, depth_prior: np.ndarray, ratio: float) -> ModeledDetections:
+    """The modeled boxes without those of classes with a typical depth (``depth_prior`` (M,), NaN:
+    none) whose shorter horizontal side exceeds ``ratio`` times it: a "tv" 0.88 m deep is a mask
+    that spilled over the desk in front of the screen (tum-fr1-rpy), and its box would grow or move
+    whatever object it matched."""
+    deep = np.nan_to_num(depth_prior, nan=np.inf) * ratio < modeled.boxes.size[:, :2].min(axis=1)
+    if not deep.any():
+        return modeled
+    keep = np.flatnonzero(~deep)
+    return ModeledDetections(modeled.boxes.take(keep), modeled.defined[keep], modeled.source[keep],
+                             modeled.n_points[keep])
 
 
 def relabel_too_tall(scores: list[np.ndarray], source: np.ndarray, heights: np.ndarray, max_height: np.ndarray,
                      taller_is: np.ndarray) -> list[np.ndarray]:
     """The class vectors (C+1,) of a frame's detections, where a detection whose box is taller than
-    its top class ever stands has that class's score moved to the class it then is.
+    its top class ever stands has that class's score moved to the class it then is (the same for
+    widths: the longer side of the footprint against ``wider_than``).
 
     source (M,): each box's detection in ``scores``; heights (M,): the boxes' z extents, metres;
     max_height, taller_is (C+1,): from :class:`ClassFlags`. A box can only be seen shorter than

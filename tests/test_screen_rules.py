@@ -1,0 +1,63 @@
+"""modeling.wider_than and modeling.max_depth_ratio (issue 9, twelfth round, from tum-fr1-rpy):
+a "laptop" wider than any laptop is a monitor (COCO's tv), and a "tv" box far deeper than any
+screen is a mask spilled over what lies in front of it. Expected values are worked out by hand from
+the rendered scenes (tests/scene.py: camera at the origin looking along +x, z up, f 500,
+depth = x)."""
+
+import numpy as np
+import pytest
+
+from ltc_cli.config import defaults
+from ltc_cli.map.model import top_class
+from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame
+from tests.scene import INTR, T_world_camera, render
+from tests.test_monitor_rules import CLASSES, LAPTOP, TV, vector
+
+
+def stage_1(boxes, score_vector, cfg):
+    """Stage 1 of one frame with one detection whose mask is every rendered box's pixels."""
+    depth, masks = render(boxes, wall_x=4.0)
+    mask = np.logical_or.reduce(masks)
+    return model_frame([mask], [score_vector], depth, T_world_camera(), INTR, (0.3, 6.0), cfg,
+                       ClassFlags.from_settings(CLASSES, cfg))
+
+
+@pytest.mark.parametrize("half_width, expected", [(0.28, "tv"), (0.18, "laptop")])
+def test_stage_1_calls_a_laptop_wider_than_any_laptop_a_tv(half_width, expected):
+    """A face 2 m ahead, 0.2 m tall (under the 0.35 m height bound), detected as laptop 0.6: 0.56 m
+    wide it is over the 0.45 m width bound and comes out tv; 0.36 m wide it stays a laptop. Without
+    the rule both stay laptops."""
+    cfg = defaults()
+    cfg["modeling"]["wider_than"] = {"laptop": {"width": 0.45, "is": "tv"}}
+    face = [(2.0, 2.05, -half_width, half_width, 0.9, 1.1)]
+    out = stage_1(face, vector(LAPTOP, 0.6), cfg)
+    assert len(out.modeled.source) == 1
+    assert out.modeled.boxes.size[0, :2].max() == pytest.approx(2 * half_width, abs=0.03)
+    assert CLASSES[int(top_class(out.scores[0]))] == expected
+    cfg["modeling"]["wider_than"] = {}
+    assert CLASSES[int(top_class(stage_1(face, vector(LAPTOP, 0.6), cfg).scores[0]))] == "laptop"
+
+
+def staircase(steps: int):
+    """Faces 1 m wide every 0.1 m from x = 2.0 on, from the floor up to 0.5, 0.55, ... m, all under
+    the camera's height (z 1.0): each shows its top above the one before it, so the image is one
+    region with depth readings 2.0 ... 2.0 + 0.1 (steps - 1) m, each step about 0.1 m from the next
+    (under DBSCAN's eps 0.15): one cluster as deep as the stairs."""
+    return [(2.0 + 0.1 * k, 2.05 + 0.1 * k, -0.5, 0.5, 0.0, 0.5 + 0.05 * k) for k in range(steps)]
+
+
+@pytest.mark.parametrize("steps, ratio, boxes", [
+    (9, None, 1),   # the paper: a 0.85 m deep "tv" box
+    (9, 6.0, 0),    # over 6 x tv's 0.1 m class depth: no box
+    (4, 6.0, 1),    # 0.35 m deep (a screen on its foot, seen at an angle): kept
+])
+def test_a_tv_box_deeper_than_any_screen_gives_no_box(steps, ratio, boxes):
+    cfg = defaults()
+    cfg["modeling"]["max_depth_ratio"] = ratio
+    assert cfg["modeling"]["class_depth"]["tv"] == 0.1
+    out = stage_1(staircase(steps), vector(TV, 0.8), cfg)
+    assert len(out.modeled.source) == boxes
+    if boxes:
+        # The stairs' depth along x: from the first face to the last one's back, 0.1 (steps - 1)
+        # + 0.05 m, less the few cm thinning takes off the far edge.
+        assert out.modeled.boxes.size[0, :2].min() == pytest.approx(0.1 * (steps - 1) + 0.05, abs=0.06)
