@@ -25,7 +25,7 @@ class ModelingSettings(TypedDict):
     min_depth_share: Optional[float]
     clustering: str
     stack_gap: Optional[float]
-    pixel_weights: bool
+    pixel_weights: Union[bool, list[str]]
     eps: float
     min_samples: int
     min_extent: float

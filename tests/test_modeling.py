@@ -263,3 +263,26 @@ def test_pixel_weights_reach_the_clustering_through_the_settings():
     assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 0
     p["pixel_weights"] = True
     assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 1
+
+
+def test_pixel_weights_by_class_weigh_those_classes_only():
+    """modeling.pixel_weights as a class list: a detection of a listed class is clustered as with
+    pixel_weights true, one of another class as with false (the sparse face of the test above:
+    kept with weights, dropped without)."""
+    from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame
+
+    cfg = defaults()
+    cfg["modeling"].update(max_points=40, min_samples=20, thin_max_iterations=0, clustering="dbscan")
+    cfg["modeling"]["pixel_weights"] = ["bed"]
+    classes = ["bed", "chair"]
+    flags = ClassFlags.from_settings(classes, cfg)
+    assert flags.weighted.tolist() == [True, False, False]
+    depth, _ = render([(2.0, 2.05, -0.3, 0.3, 0.6, 1.0)], wall_x=4.0)
+    u0, u1, v0, v1 = face_rect(-0.3, 0.3, 0.6, 1.0, 2.0)
+    mask = np.zeros(depth.shape, bool)
+    mask[v0:v1, u0:u1] = True
+    bed, chair = np.array([0.9, 0.05, 0.05]), np.array([0.05, 0.9, 0.05])
+    out = model_frame([mask, mask], [bed, chair], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags)
+    assert out.modeled.source.tolist() == [0]  # the bed's box only
+    cfg["modeling"]["pixel_weights"] = False
+    assert ClassFlags.from_settings(classes, cfg).weighted is None

@@ -30,7 +30,9 @@ class ClassFlags:
     typical depth of a one-view slab (NaN: none); max_height: the height a box of the class is
     never taller than (inf: none), and taller_is: the class such a box is then (-1: none;
     NEXT: the detection's own next most likely class); max_width and wider_is: the same for the
-    longer side of the box's footprint.
+    longer side of the box's footprint; weighted: the classes whose mask points count for the
+    pixels they stand for (``pixel_weights`` as a class list; None: as ``pixel_weights`` says for
+    all).
     """
 
     moving: np.ndarray
@@ -40,6 +42,7 @@ class ClassFlags:
     taller_is: np.ndarray | None = None
     max_width: np.ndarray | None = None
     wider_is: np.ndarray | None = None
+    weighted: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
@@ -55,10 +58,12 @@ class ClassFlags:
                     np.array([-1 if c not in rules else NEXT if rules[c]["is"] == "next" else pos[rules[c]["is"]]
                               for c in classes] + [-1]))
 
+        weights = config["modeling"]["pixel_weights"]
+        weighted = np.array([c in weights for c in classes] + [False]) if isinstance(weights, list) else None
         return cls(np.array([c in moving for c in classes] + [False]),
                    np.array([c in floor for c in classes] + [False]),
                    np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]),
-                   *bounds("taller_than", "height"), *bounds("wider_than", "width"))
+                   *bounds("taller_than", "height"), *bounds("wider_than", "width"), weighted)
 
 
 @dataclass
@@ -109,7 +114,8 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,
-                               class_depth=flags.depth_prior[top])
+                               class_depth=flags.depth_prior[top],
+                               weighted=None if flags.weighted is None else flags.weighted[top])
     ratio = config["modeling"].get("max_depth_ratio")
     if ratio is not None and len(modeled.source):
         modeled = drop_deep_slabs(modeled, flags.depth_prior[top[modeled.source]], ratio)

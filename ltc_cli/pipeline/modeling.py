@@ -292,12 +292,14 @@ def model_detections(
     grounded: np.ndarray | None = None,
     floor_z: float | None = None,
     class_depth: np.ndarray | None = None,
+    weighted: np.ndarray | None = None,
 ) -> ModeledDetections:
     """Masks (H, W) of one frame -> boxes in the map frame (DESIGN.md 1.1).
 
     thinning -> eq. 1 back-projection of a subsample -> map frame -> largest cluster -> exact
     minimum-area Z-oriented box -> drop specks and out-of-range boxes -> vertex visibility ->
-    Defined.
+    Defined. ``weighted`` (one bool per mask): whose points count for the pixels they stand for
+    (``pixel_weights`` by class); None: every mask's when ``pixel_weights`` is true, none otherwise.
     """
     min_d, max_d = depth_range
     pts_list, groups, sources, pads, backs, weights = [], [], [], [], [], []
@@ -319,7 +321,7 @@ def model_detections(
         pts_cam = backproject(u, v, z, intr)
         pts_list.append(transform(T_map_camera, pts_cam))
         groups.append(np.full(len(z), len(sources)))
-        weights.append(np.full(len(z), float(stride * stride)))
+        weights.append(np.full(len(z), float(stride * stride) if weighted is None or weighted[i] else 1.0))
         sources.append(i)
     empty = ModeledDetections(
         Boxes(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 8), bool)),
@@ -332,7 +334,7 @@ def model_detections(
     # pixel_weights: a subsampled point stands for the stride^2 pixels around it, so DBSCAN's
     # density is the whole mask's (as if every pixel were clustered, the paper's); counted once, a
     # large mask's sparse parts (a bed top at a grazing angle, 10 cm between points) are noise.
-    w = np.concatenate(weights) if p.get("pixel_weights") else None
+    w = np.concatenate(weights) if weighted is not None or p.get("pixel_weights") is True else None
     clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"], p.get("stack_gap"), w)
     centers, yaws, sizes, src, npts, gaps = [], [], [], [], [], []
     for g, idx in enumerate(clusters):
