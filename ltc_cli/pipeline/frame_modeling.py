@@ -115,7 +115,7 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,
                                class_depth=flags.depth_prior[top],
-                               weighted=None if flags.weighted is None else flags.weighted[top])
+                               weighted=weighted_detections(flags.weighted, top))
     ratio = config["modeling"].get("max_depth_ratio")
     if ratio is not None and len(modeled.source):
         modeled = drop_deep_slabs(modeled, flags.depth_prior[top[modeled.source]], ratio)
@@ -128,6 +128,14 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, :2].max(axis=1), flags.max_width,
                                   flags.wider_is)
     return FrameModel(detections, scores, modeled)
+
+
+def weighted_detections(weighted_classes: np.ndarray | None, top: np.ndarray) -> np.ndarray | None:
+    """Per detection (top classes (N,)), whether its points are pixel-weighted; None when none is
+    (the unweighted clustering, no weights to carry) or when ``pixel_weights`` is not a list."""
+    if weighted_classes is None or not weighted_classes[top].any():
+        return None
+    return weighted_classes[top]
 
 
 def drop_deep_slabs(modeled: ModeledDetections, depth_prior: np.ndarray, ratio: float) -> ModeledDetections:
