@@ -23,6 +23,7 @@ class ModelingSettings(TypedDict):
     picture_flatness: Optional[float]
     picture_depth_noise: Optional[float]
     min_depth_share: Optional[float]
+    min_mask_explained: Optional[float]
     clustering: str
     stack_gap: Optional[float]
     pixel_weights: Union[bool, list[str]]

@@ -195,6 +195,7 @@ def test_valid_depth_share_by_hand():
 
 def test_min_depth_share_drops_a_dark_screen():
     p = dict(defaults()["modeling"])
+    p["min_mask_explained"] = None  # min_depth_share alone (both: tests/test_mask_explained.py)
     # A monitor 0.6 (y) x 0.8 (z) 2 m ahead whose dark screen gives depth only on a central
     # strip a tenth of its width: after thinning about 10-12 % of the mask has depth.
     depth, _ = render([(2.0, 2.05, -0.3, 0.3, 0.2, 1.0)], wall_x=4.0)
@@ -215,7 +216,7 @@ def test_min_depth_share_drops_a_dark_screen():
     assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 0
     # The default (0.2) drops it too, and keeps the same screen when its depth covers a strip
     # four tenths of its width (about 35-40 % of the thinned mask).
-    p = dict(defaults()["modeling"])
+    p["min_depth_share"] = defaults()["modeling"]["min_depth_share"]
     assert len(model_detections([mask], depth, INTR, T_world_camera(), p, (0.3, 6.0)).source) == 0
     depth, _ = render([(2.0, 2.05, -0.3, 0.3, 0.2, 1.0)], wall_x=4.0)
     hole = mask.copy()

@@ -101,6 +101,26 @@ def valid_depth_share(crop: np.ndarray, r0: int, c0: int, depth_m: np.ndarray, m
     return float(np.count_nonzero((z > min_depth) & (z < max_depth))) / n
 
 
+def mask_coverage(corners_cam: np.ndarray, crop: np.ndarray, r0: int, c0: int, intr: Intrinsics) -> float:
+    """The share (0..1) of a mask's pixels inside the image outline of its box.
+
+    corners_cam (8, 3): the box's corners in the camera frame; crop (h, w) bool: the mask's part
+    starting at image row r0, column c0. 1 when a corner is behind the camera (a box around it
+    explains whatever the mask shows) or the mask is empty.
+    """
+    n = int(np.count_nonzero(crop))
+    if n == 0 or (corners_cam[:, 2] <= 1e-3).any():
+        return 1.0
+    u, v, _ = project(corners_cam, intr)
+    outline = np.stack([u - c0, v - r0], axis=1)
+    if not np.isfinite(outline).all() or np.abs(outline).max() > 1e6:
+        return 1.0
+    hull = cv2.convexHull(np.round(outline).astype(np.int32))
+    inside = np.zeros(crop.shape, np.uint8)
+    cv2.fillConvexPoly(inside, hull, 1)
+    return float(np.count_nonzero(inside.astype(bool) & crop)) / n
+
+
 def depth_edges(depth_m: np.ndarray, u: np.ndarray, v: np.ndarray, z: np.ndarray, jump: float) -> np.ndarray:
     """(N,) True where a pixel's depth differs from a 4-neighbour's by more than ``jump`` * z.
 
@@ -302,14 +322,14 @@ def model_detections(
     (``pixel_weights`` by class); None: every mask's when ``pixel_weights`` is true, none otherwise.
     """
     min_d, max_d = depth_range
-    pts_list, groups, sources, pads, backs, weights = [], [], [], [], [], []
+    pts_list, groups, sources, pads, backs, weights, crops = [], [], [], [], [], [], []
     for i, mask in enumerate(masks):
         crop, r0, c0, k = thin_crop(mask, p["thin_max_iterations"], p["thin_fraction"])
         if crop is None:
             continue
         # Too few depth readings on the mask: the points are not the object's (None: keep all).
-        if p.get("min_depth_share") is not None and \
-                valid_depth_share(crop, r0, c0, depth_m, min_d, max_d) < p["min_depth_share"]:
+        share = valid_depth_share(crop, r0, c0, depth_m, min_d, max_d)
+        if p.get("min_depth_share") is not None and share < p["min_depth_share"]:
             continue
         u, v, z, stride = mask_pixels(crop, r0, c0, depth_m, p["max_points"], min_d, max_d, p["edge_jump"])
         if len(z) < p["min_samples"]:
@@ -323,6 +343,7 @@ def model_detections(
         groups.append(np.full(len(z), len(sources)))
         weights.append(np.full(len(z), float(stride * stride) if weighted is None or weighted[i] else 1.0))
         sources.append(i)
+        crops.append((crop, r0, c0, share))
     empty = ModeledDetections(
         Boxes(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 8), bool)),
         np.zeros(0, bool), np.zeros(0, int), np.zeros(0, int),
@@ -336,7 +357,7 @@ def model_detections(
     # large mask's sparse parts (a bed top at a grazing angle, 10 cm between points) are noise.
     w = np.concatenate(weights) if weighted is not None or p.get("pixel_weights") is True else None
     clusters = largest_clusters(points, group, p["eps"], p["min_samples"], p["clustering"], p.get("stack_gap"), w)
-    centers, yaws, sizes, src, npts, gaps = [], [], [], [], [], []
+    centers, yaws, sizes, src, npts, gaps, kept = [], [], [], [], [], [], []
     for g, idx in enumerate(clusters):
         if idx is None:
             continue
@@ -352,6 +373,7 @@ def model_detections(
         sizes.append(size)
         gaps.append(backs[g])
         src.append(sources[g])
+        kept.append(g)
         npts.append(len(idx))
     if not centers:
         return empty
@@ -372,4 +394,17 @@ def model_detections(
                          p["thin_extent"])
     if grounded is not None and floor_z is not None:
         ground_to_floor(boxes, np.asarray(grounded)[np.array(src)], floor_z, p["ground_max_gap"])
-    return ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))
+    out = ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))
+    explained = p.get("min_mask_explained")
+    if explained is None:
+        return out
+    # Under half of the mask had depth and the box drawn back into the image covers under half
+    # of the mask: the points are what the mask bled onto (the clutter in front of a dark screen
+    # on tum-fr1-rpy), not the object the detector saw.
+    corners_cam = transform(invert_pose(T_map_camera), boxes.corners)
+    keep = [k for k, g in enumerate(kept) if crops[g][3] >= explained
+            or mask_coverage(corners_cam[k], *crops[g][:3], intr) >= explained]
+    if len(keep) == len(kept):
+        return out
+    keep = np.array(keep, dtype=int)
+    return ModeledDetections(boxes.take(keep), out.defined[keep], out.source[keep], out.n_points[keep])
