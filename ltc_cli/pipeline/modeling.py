@@ -328,7 +328,8 @@ def model_detections(
         if crop is None:
             continue
         # Too few depth readings on the mask: the points are not the object's (None: keep all).
-        share = valid_depth_share(crop, r0, c0, depth_m, min_d, max_d)
+        share = valid_depth_share(crop, r0, c0, depth_m, min_d, max_d) \
+            if p.get("min_depth_share") is not None or p.get("min_mask_explained") is not None else 1.0
         if p.get("min_depth_share") is not None and share < p["min_depth_share"]:
             continue
         u, v, z, stride = mask_pixels(crop, r0, c0, depth_m, p["max_points"], min_d, max_d, p["edge_jump"])
@@ -396,14 +397,14 @@ def model_detections(
         ground_to_floor(boxes, np.asarray(grounded)[np.array(src)], floor_z, p["ground_max_gap"])
     out = ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))
     explained = p.get("min_mask_explained")
-    if explained is None:
+    if explained is None or all(crops[g][3] >= explained for g in kept):
         return out
-    # Under half of the mask had depth and the box drawn back into the image covers under half
-    # of the mask: the points are what the mask bled onto (the clutter in front of a dark screen
-    # on tum-fr1-rpy), not the object the detector saw.
-    corners_cam = transform(invert_pose(T_map_camera), boxes.corners)
+    # Little of the mask had depth and the box drawn back into the image covers little of the
+    # mask: the points are what the mask bled onto (the clutter in front of a dark screen on
+    # tum-fr1-rpy), not the object the detector saw.
+    T_camera_map = invert_pose(T_map_camera)
     keep = [k for k, g in enumerate(kept) if crops[g][3] >= explained
-            or mask_coverage(corners_cam[k], *crops[g][:3], intr) >= explained]
+            or mask_coverage(transform(T_camera_map, boxes.corners[k]), *crops[g][:3], intr) >= explained]
     if len(keep) == len(kept):
         return out
     keep = np.array(keep, dtype=int)
