@@ -25,10 +25,10 @@ def make_mapper(cfg):
     return Mapper(smap, cfg, metric, policy)
 
 
-def add_object(mapper, center, size, scores, n_det, n_clear=0, n_nondet=0):
+def add_object(mapper, center, size, scores, n_det, n_clear=0, n_nondet=0, n_clear_det=0):
     t = mapper.map.objects
     row = t.append(center=center, yaw=0.0, size=size, visible=np.ones(8, bool), defined=True, scores=scores,
-                   n_det=n_det, n_nondet=n_nondet, n_clear=n_clear, status=ACTIVE)
+                   n_det=n_det, n_nondet=n_nondet, n_clear=n_clear, n_clear_det=n_clear_det, status=ACTIVE)
     mapper.index.insert(row, np.asarray(center, float), np.asarray(size, float))
     return row
 
@@ -60,7 +60,7 @@ def test_learnt_rate_after_a_known_sequence_of_detections_and_clear_misses():
     for k in range(4, 6):  # ... and missed in 2
         mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
     t = mapper.map.objects
-    assert (t.n_clear[row], t.n_nondet[row], t.status[row]) == (6, 2, ACTIVE)
+    assert (t.n_clear[row], t.n_clear_det[row], t.n_nondet[row], t.status[row]) == (6, 4, 2, ACTIVE)
     assert (mapper.rates.views[0], mapper.rates.hits[0]) == (6, 4)
     # By hand: p = (4 + 20 * 0.5) / (6 + 20) = 14 / 26; v_Other = 0.5 * p * 0.6 / (1 - p) = 0.35.
     p = 14 / 26
@@ -69,6 +69,37 @@ def test_learnt_rate_after_a_known_sequence_of_detections_and_clear_misses():
     # The counts equal a recount over the table (what a resumed ingest starts from).
     again = Mapper(mapper.map, cfg, mapper.metric, mapper.policy, session=0)
     assert (again.rates.views[0], again.rates.hits[0]) == (6, 4)
+
+
+def test_misses_counted_once_per_view_do_not_raise_the_learnt_rate():
+    """With the default new-view rule, four misses from one place are one non-detection, but four
+    clear views without a detection all the same: the rate is hits over clear views, 4 of 8."""
+    cfg = learning_config()
+    cfg["maintenance"]["nondet_min_move"], cfg["maintenance"]["nondet_min_turn"] = 0.25, 20
+    mapper = make_mapper(cfg)
+    row = add_object(mapper, *CHAIR_BOX, chair_vector(), n_det=3)
+    seen, masks = render([CHAIR_FACE], wall_x=4.0)
+    empty, _ = render([], wall_x=4.0)
+    for k in range(4):
+        mapper.process_frame(k, str(k), [masks[0]], [chair_vector(0.8)], seen, T_world_camera(), INTR, (0.3, 6.0))
+    for k in range(4, 8):  # the camera does not move: one counted miss
+        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    t = mapper.map.objects
+    assert (t.n_clear[row], t.n_clear_det[row], t.n_nondet[row]) == (8, 4, 1)
+    # Clear views less counted misses would say 7 hits of 8; the detector found it in 4.
+    assert (mapper.rates.views[0], mapper.rates.hits[0]) == (8, 4)
+    # By hand: p = (4 + 20 * 0.5) / (8 + 20) = 0.5; v_Other = 0.5 * 0.5 * 0.6 / 0.5 = 0.3.
+    assert mapper.rates.vectors()[0, -1] == pytest.approx(0.3)
+
+
+def test_a_map_written_before_the_hit_count_reads_its_old_estimate():
+    from ltc_cli.map.model import ObjectTable
+    t = ObjectTable(len(CLASSES))
+    t.append(scores=chair_vector(), n_det=9, n_clear=10, n_nondet=3, status=ACTIVE)
+    t.append(scores=chair_vector(), n_det=1, n_clear=2, n_nondet=5, status=ACTIVE)
+    cols = {k: v for k, v in t.columns().items() if k != "n_clear_det"}
+    old = ObjectTable.from_columns(cols)
+    assert old.n_clear_det.tolist() == [7, 0]  # clear views less misses, never below 0
 
 
 def test_v_other_from_rate_by_hand():
@@ -86,7 +117,8 @@ def test_seen_50_times_survives_5_clear_misses_at_rate_one_half_and_goes_after_e
     cap = cfg["integration"]["max_weight"]
     assert cap == 20
     mapper = make_mapper(cfg)
-    add_object(mapper, [40.0, 40.0, 0.5], [0.5, 0.5, 1.0], chair_vector(), n_det=500, n_clear=1000, n_nondet=500)
+    add_object(mapper, [40.0, 40.0, 0.5], [0.5, 0.5, 1.0], chair_vector(), n_det=500, n_clear=1000, n_nondet=500,
+               n_clear_det=500)
     row = add_object(mapper, *CHAIR_BOX, chair_vector(0.9), n_det=50)
     mapper = Mapper(mapper.map, cfg, mapper.metric, mapper.policy)  # counts the map as it opens it
     assert (mapper.rates.views[0], mapper.rates.hits[0]) == (1000, 500)

@@ -22,7 +22,7 @@ ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 # Columns added after format 1: a map written before them reads them as zeros.
 ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session", "clear_since_det",
-                           "det_view", "det_views", "through_since_det"})
+                           "det_view", "det_views", "through_since_det", "n_clear_det"})
 
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
@@ -40,6 +40,9 @@ COLUMNS = {
     # Frames in which the object was clearly visible (enough pixels for a non-detection), detected
     # or not: with n_nondet, the detector's hit rate on it (the learnt per-class detection rate).
     "n_clear": ((), np.int64),
+    # Of those, the frames in which it was detected: the hit rate is n_clear_det / n_clear. Misses
+    # count as non-detections only from a new view, so n_clear - n_nondet overstates the hits.
+    "n_clear_det": ((), np.int64),
     # Camera position (3) and forward axis (3) at the object's last counted non-detection (zeros:
     # none yet): misses from nearly the same view are one piece of evidence, not several.
     "nondet_view": ((6,), np.float64),
@@ -125,6 +128,9 @@ class ObjectTable:
         for name in COLUMNS:
             if name in columns:  # maps written before a column existed read it as zeros
                 t.cols[name][: t.n] = columns[name]
+        if "n_clear_det" not in columns and "n_clear" in columns:
+            # The best a map written before the column can say: its clear views less its misses.
+            t.cols["n_clear_det"][: t.n] = np.maximum(t.n_clear - t.n_nondet, 0)
         return t
 
     def columns(self) -> dict:

@@ -130,12 +130,12 @@ def other_leads(scores: np.ndarray) -> np.ndarray:
     return scores.argmax(axis=1) == scores.shape[1] - 1
 
 
-def class_hit_counts(top: np.ndarray, n_clear: np.ndarray, n_nondet: np.ndarray, n_classes: int):
-    """(views (C,), hits (C,)) summed over objects by their top class: clear views, and those in
-    which the object was detected (a clear view without a detection is a non-detection)."""
+def class_hit_counts(top: np.ndarray, n_clear: np.ndarray, n_clear_det: np.ndarray, n_classes: int):
+    """(views (C,), hits (C,)) summed over objects by their top class: the frames in which each was
+    clearly visible, and those of them in which it was detected."""
     views = np.bincount(top, weights=n_clear, minlength=n_classes).astype(np.int64)
-    misses = np.bincount(top, weights=n_nondet, minlength=n_classes).astype(np.int64)
-    return views, views - misses
+    hits = np.bincount(top, weights=n_clear_det, minlength=n_classes).astype(np.int64)
+    return views, hits
 
 
 def learnt_detection_rate(views: np.ndarray, hits: np.ndarray, prior: float, prior_views: float) -> np.ndarray:

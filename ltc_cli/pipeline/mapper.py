@@ -158,9 +158,10 @@ class Mapper(InstanceMerging):
             vectors = self.rates.vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
-            for row in rows[clear]:
+            for row, hit in zip(rows[clear], matched[clear]):
                 self.rates.touch(int(row))
                 cols["n_clear"][row] += 1
+                cols["n_clear_det"][row] += int(hit)
             count_absence_views(cols, rows, clear_absent, matched, seen_through, self.session)
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1

@@ -48,7 +48,7 @@ class InstanceMerging:
             keep, drop = int(rows[keep]), int(rows[drop])
             self.rates.touch(keep)
             self.rates.touch(drop)
-            for col in ("n_det", "n_clear"):
+            for col in ("n_det", "n_clear", "n_clear_det"):
                 t.cols[col][keep] += t.cols[col][drop]
             self._seen(keep, frame_index)
             self._set_status(drop, MERGED)
@@ -92,7 +92,7 @@ class InstanceMerging:
         box, scores = self._merged(min(keep, drop), max(keep, drop))
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
-        for col in ("n_det", "n_nondet", "n_clear"):
+        for col in ("n_det", "n_nondet", "n_clear", "n_clear_det"):
             t.cols[col][keep] += t.cols[col][drop]
         t.cols["det_views"][keep] = max(t.det_views[keep], t.det_views[drop])
         if (t.first_session[drop], t.first_frame[drop]) < (t.first_session[keep], t.first_frame[keep]):

@@ -28,8 +28,7 @@ class DetectionRates:
         rows = smap.active_rows()
         rows = rows[t.n_det[rows] >= self.confirmed]
         self.views, self.hits = class_hit_counts(
-            top_class(t.scores[rows]), np.maximum(t.n_clear[rows], t.n_nondet[rows]), t.n_nondet[rows],
-            len(smap.classes))
+            top_class(t.scores[rows]), t.n_clear[rows], t.n_clear_det[rows], len(smap.classes))
         self._touched: dict = {}
         self._fixed_vectors = None
         self._fixed_vectors = self.vectors()
@@ -39,8 +38,7 @@ class DetectionRates:
         t = self.map.objects
         if t.status[row] != ACTIVE or t.n_det[row] < self.confirmed:
             return None
-        views = max(int(t.n_clear[row]), int(t.n_nondet[row]))
-        return int(top_class(t.scores[row])), views, views - int(t.n_nondet[row])
+        return int(top_class(t.scores[row])), int(t.n_clear[row]), int(t.n_clear_det[row])
 
     def touch(self, row: int) -> None:
         """Remember what ``row`` counted for before it changes (a row past the table: a new object)."""
