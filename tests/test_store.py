@@ -43,8 +43,11 @@ def test_round_trip(tmp_path):
     assert back.sessions[0]["metric"] == "vertex" and back.sessions[0]["frames_done"] == 1
     assert not list(tmp_path.glob(".*tmp*"))  # no temporary file left behind
     with h5py.File(path) as f:  # plain HDF5: any reader sees the objects
-        assert f.attrs["format"] == "ltc-map"
+        assert f.attrs["format"] == b"ltc-map"  # fixed-length: h5py reads it as bytes
         np.testing.assert_array_equal(f["objects/yaw"][()], [0.3])
+    # No variable-length text anywhere, so no global heap collection (signature GCOL), whose
+    # damage made HDF5 loop for ever: the last one held the format mark.
+    assert b"GCOL" not in path.read_bytes()
 
 
 def test_refuses_files_that_are_not_maps(tmp_path):

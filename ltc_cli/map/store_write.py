@@ -91,9 +91,10 @@ def map_image(smap: SemanticMap) -> bytes:
     smap.require_events()
     name = f"ltc-map-{os.getpid()}-{next(_images)}.h5"
     with h5py.File(name, "w", driver="core", backing_store=False, **FILE_OPTIONS) as f:
-        # Text attributes fixed-length too (np.bytes_), for the reason text_array gives; the
-        # format mark stays a variable-length string, as every reader of version 1 expects it.
-        f.attrs["format"] = FORMAT
+        # Text attributes fixed-length too (np.bytes_), for the reason text_array gives, the format
+        # mark included: every ltc reader of version 1 decodes a bytes mark, and a variable-length
+        # one was the file's last global heap (a damaged heap made HDF5 loop for ever on it).
+        f.attrs["format"] = np.bytes_(FORMAT)
         f.attrs["format_version"] = VERSION
         f.attrs["ltc_version"] = np.bytes_(__version__)
         f.attrs["created"] = np.bytes_(smap.created.encode("utf-8"))
