@@ -66,17 +66,20 @@ def test_label_survivor_by_hand():
     assert not label_survivor(MOUSE, TV, MOUSE, True)    # it names the older one's
     assert not label_survivor(TV, TV, TV, True)          # one class: the older id, as always
     assert not label_survivor(MOUSE, TV, TV, False)      # the paper: the older id
+    assert not label_survivor(MOUSE, TV, TV, True, True)  # the newer one made in this session only
     # In greedy_merges: pair (0, 1) with ids 1 and 2; the survivor callback names index 1.
     assert greedy_merges([(0.1, 0, 1)], np.array([1, 2]), lambda a, b: b) == [(1, 0)]
     assert greedy_merges([(0.1, 0, 1)], np.array([1, 2])) == [(0, 1)]
 
 
-@pytest.mark.parametrize("by_label, survivor", [(True, 1), (False, 0)])
-def test_a_monitor_foot_mapped_first_as_mouse_joins_the_tv_under_the_tvs_id(by_label, survivor):
+@pytest.mark.parametrize("by_label, tv_session, survivor", [(True, 0, 1), (False, 0, 0), (True, 1, 0)])
+def test_a_monitor_foot_mapped_first_as_mouse_joins_the_tv_under_the_tvs_id(by_label, tv_session, survivor):
     """Object 1: "mouse" 0.8 seen 5 times, a 0.5 x 0.3 x 0.3 box at the foot; object 2: "tv" 0.8
     seen 40 times, 0.5 x 0.3 x 0.5 over the same footprint (XY IoU 1, volume ratio 0.6). In view of
     an empty frame they merge as one object under two labels; eq. 3 weighted by observations
-    (5 against 40) gives tv (0.8 * 40 + 0.05 * 5) / 45 = 0.72, so by label the tv's id 2 stays."""
+    (5 against 40) gives tv (0.8 * 40 + 0.05 * 5) / 45 = 0.72, so by label the tv's id 2 stays.
+    When the tv was made in this session (1) and the mouse in an earlier one, the mouse's id 1,
+    which the map already gave, stays (with the class vector still saying tv)."""
     cfg = defaults()
     cfg["association"]["merge_id_by_label"] = by_label
     m = cfg["maintenance"]
@@ -85,8 +88,8 @@ def test_a_monitor_foot_mapped_first_as_mouse_joins_the_tv_under_the_tvs_id(by_l
     smap = SemanticMap.new(CLASSES)
     t = smap.objects
     rows = [t.append(center=[2.25, 0.0, z], yaw=0.0, size=[0.3, 0.5, sz], visible=np.ones(8, bool), defined=True,
-                     scores=vector(cls, 0.8), n_det=n, status=ACTIVE, first_session=0, last_session=0)
-            for cls, n, z, sz in ((MOUSE, 5, 0.85, 0.3), (TV, 40, 0.95, 0.5))]
+                     scores=vector(cls, 0.8), n_det=n, status=ACTIVE, first_session=fs, last_session=fs)
+            for cls, n, z, sz, fs in ((MOUSE, 5, 0.85, 0.3, 0), (TV, 40, 0.95, 0.5, tv_session))]
     mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
                     plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
     for r in rows:

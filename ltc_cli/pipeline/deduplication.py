@@ -93,12 +93,17 @@ def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray, survivor
     return out
 
 
-def label_survivor(top_older: int, top_newer: int, top_merged: int, by_label: bool) -> bool:
+def label_survivor(top_older: int, top_newer: int, top_merged: int, by_label: bool,
+                   newer_only_now: bool = False) -> bool:
     """True when, of two map objects that merge, the newer one keeps its id: the two had different
     top classes and the merged class vector names the newer one's. The user knows the map by
     "tv 2"; when a monitor's foot, mapped first as "mouse 1", joins it, "tv 2" is the object that is
-    still there. by_label False: the older id always stays (the paper's de-duplication keeps one)."""
-    return bool(by_label and top_older != top_newer and top_merged == top_newer)
+    still there. by_label False: the older id always stays (the paper's de-duplication keeps one).
+
+    ``newer_only_now``: the newer object was made in this session and the older one in an earlier
+    session. Then the older id stays whatever the label: it is an id the map already gave the
+    user, the newer one is minutes old and nobody knows it yet."""
+    return bool(by_label and not newer_only_now and top_older != top_newer and top_merged == top_newer)
 
 
 def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_volume_ratio: float | None

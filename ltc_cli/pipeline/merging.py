@@ -83,7 +83,8 @@ class InstanceMerging:
             return a
         older, newer = int(rows[a]), int(rows[b])
         scores = merged_scores(t.scores[older], t.scores[newer], *self._merge_weights(older, newer))
-        return b if label_survivor(int(tops[0]), int(tops[1]), int(top_class(scores)), by_label) else a
+        only_now = t.first_session[older] < self.session <= t.first_session[newer]
+        return b if label_survivor(int(tops[0]), int(tops[1]), int(top_class(scores)), by_label, only_now) else a
 
     def _absorb(self, keep, drop, frame_index, frame_key) -> None:
         t = self.map.objects
