@@ -34,6 +34,7 @@ class ModelingSettings(TypedDict):
     class_depth: dict[str, float]
     taller_than: dict[str, dict]
     wider_than: dict[str, dict]
+    narrower_than: dict[str, dict]
     max_depth_ratio: Optional[float]
     floor_classes: list[str]
     ground_max_gap: float

@@ -61,3 +61,59 @@ def test_a_tv_box_deeper_than_any_screen_gives_no_box(steps, ratio, boxes):
         # The stairs' depth along x: from the first face to the last one's back, 0.1 (steps - 1)
         # + 0.05 m, less the few cm thinning takes off the far edge.
         assert out.modeled.boxes.size[0, :2].min() == pytest.approx(0.1 * (steps - 1) + 0.05, abs=0.06)
+
+
+# modeling.narrower_than (issue 9, fourteenth round): a whole "couch" under 1 m is no couch.
+SEATS = ["couch", "chair", "bed"]  # then other
+
+
+def couch_vector():
+    return np.array([0.6, 0.3, 0.05, 0.05])  # couch 0.6, chair second
+
+
+def test_relabel_too_narrow_by_hand():
+    """couch 0.6, chair 0.3: a Defined 0.8 m box moves the 0.6 to chair (0.9); a Defined 1.4 m box,
+    a partial 0.8 m box, and a Defined 0.8 m box with no second class stay couches."""
+    from ltc_cli.pipeline.frame_modeling import NEXT, relabel_too_narrow
+
+    min_width = np.array([1.0, 0.0, 0.0, 0.0])
+    to = np.array([NEXT, -1, -1, -1])
+    alone = np.array([1.0, 0.0, 0.0, 0.0])
+    scores = [couch_vector(), couch_vector(), couch_vector(), alone]
+    out = relabel_too_narrow(scores, np.arange(4), np.array([0.8, 1.4, 0.8, 0.8]),
+                             np.array([True, True, False, True]), min_width, to)
+    assert out[0] == pytest.approx([0.0, 0.9, 0.05, 0.05])
+    for k in (1, 2, 3):
+        assert out[k] == pytest.approx(scores[k])
+
+
+def test_narrower_than_bounds_from_settings():
+    from ltc_cli.pipeline.frame_modeling import NEXT
+
+    cfg = defaults()
+    assert cfg["modeling"]["narrower_than"] == {"couch": {"width": 1.0, "is": "next"}}
+    flags = ClassFlags.from_settings(SEATS, cfg)
+    assert flags.min_width.tolist() == [1.0, 0.0, 0.0, 0.0] and flags.narrower_is.tolist() == [NEXT, -1, -1, -1]
+    flags = ClassFlags.from_settings(["chair", "bed"], cfg)  # no couch in the map: nothing to judge
+    assert flags.min_width.tolist() == [0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize("half_width, rule, expected", [
+    (0.4, True, "chair"),    # a whole 0.8 m "couch": the detector's next class
+    (0.7, True, "couch"),    # 1.4 m: a couch
+    (0.4, False, "couch"),   # narrower_than {}: the paper
+])
+def test_stage_1_calls_a_whole_couch_under_one_metre_its_next_class(half_width, rule, expected):
+    """A 0.3 m deep block 2 m ahead, z 0.2-0.8 m, under the camera (z 1.0), fully in view: with no
+    floor or class-depth rule and the far side taken as observed (thin_extent 0.01) all 8 corners
+    are visible and the box is Defined, as wide as the block."""
+    cfg = defaults()
+    cfg["modeling"].update(floor_classes=[], class_depth={}, thin_extent=0.01)
+    if not rule:
+        cfg["modeling"]["narrower_than"] = {}
+    depth, masks = render([(2.0, 2.3, -half_width, half_width, 0.2, 0.8)], wall_x=4.0)
+    out = model_frame(masks, [couch_vector()], depth, T_world_camera(), INTR, (0.3, 6.0), cfg,
+                      ClassFlags.from_settings(SEATS, cfg))
+    assert out.modeled.defined.tolist() == [True]
+    assert out.modeled.boxes.size[0, :2].max() == pytest.approx(2 * half_width, abs=0.03)
+    assert SEATS[int(top_class(out.scores[0]))] == expected

@@ -30,7 +30,8 @@ class ClassFlags:
     typical depth of a one-view slab (NaN: none); max_height: the height a box of the class is
     never taller than (inf: none), and taller_is: the class such a box is then (-1: none;
     NEXT: the detection's own next most likely class); max_width and wider_is: the same for the
-    longer side of the box's footprint; weighted: the classes whose mask points count for the
+    longer side of the box's footprint; min_width and narrower_is: the longer side a Defined box
+    of the class is never under (0: none) and the class such a box is then; weighted: the classes whose mask points count for the
     pixels they stand for (``pixel_weights`` as a class list; None: as ``pixel_weights`` says for
     all).
     """
@@ -43,6 +44,8 @@ class ClassFlags:
     max_width: np.ndarray | None = None
     wider_is: np.ndarray | None = None
     weighted: np.ndarray | None = None
+    min_width: np.ndarray | None = None
+    narrower_is: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
@@ -50,11 +53,11 @@ class ClassFlags:
         floor = set(config["modeling"]["floor_classes"] or [])
         priors = config["modeling"]["class_depth"] or {}
         pos = {c: i for i, c in enumerate(classes)}
-        def bounds(key: str, field: str) -> tuple[np.ndarray, np.ndarray]:
+        def bounds(key: str, field: str, none: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
             # A rule naming a class the map does not hold has nothing to act on.
             rules = {c: r for c, r in (config["modeling"].get(key) or {}).items()
                      if c in pos and (r["is"] == "next" or r["is"] in pos)}
-            return (np.array([float(rules[c][field]) if c in rules else np.inf for c in classes] + [np.inf]),
+            return (np.array([float(rules[c][field]) if c in rules else none for c in classes] + [none]),
                     np.array([-1 if c not in rules else NEXT if rules[c]["is"] == "next" else pos[rules[c]["is"]]
                               for c in classes] + [-1]))
 
@@ -63,7 +66,8 @@ class ClassFlags:
         return cls(np.array([c in moving for c in classes] + [False]),
                    np.array([c in floor for c in classes] + [False]),
                    np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]),
-                   *bounds("taller_than", "height"), *bounds("wider_than", "width"), weighted)
+                   *bounds("taller_than", "height"), *bounds("wider_than", "width"), weighted,
+                   *bounds("narrower_than", "width", 0.0))
 
 
 @dataclass
@@ -127,6 +131,9 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         # "laptop" is no laptop (tum-fr1-rpy's fourth monitor, only its top edge in view).
         scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, :2].max(axis=1), flags.max_width,
                                   flags.wider_is)
+    if flags.min_width is not None and (flags.min_width > 0).any() and len(modeled.source):
+        scores = relabel_too_narrow(scores, modeled.source, modeled.boxes.size[:, :2].max(axis=1), modeled.defined,
+                                    flags.min_width, flags.narrower_is)
     return FrameModel(detections, scores, modeled)
 
 
@@ -181,6 +188,17 @@ def relabel_too_tall(scores: list[np.ndarray], source: np.ndarray, heights: np.n
         v[top] = 0.0
         out[i] = v
     return out
+
+
+def relabel_too_narrow(scores: list[np.ndarray], source: np.ndarray, widths: np.ndarray, defined: np.ndarray,
+                       min_width: np.ndarray, narrower_is: np.ndarray) -> list[np.ndarray]:
+    """As :func:`relabel_too_tall`, for a lower bound: a Defined box (all three dimensions observed)
+    whose footprint's longer side ``widths`` (M,) is under its top class's ``min_width`` (C+1,) is
+    of class ``narrower_is``. A partial box may be any part of its object, so only Defined ones
+    are judged. A couch seats two or more (COCO's armchair is a chair): a whole "couch" under 1 m
+    is not one."""
+    judged = np.where(np.asarray(defined, dtype=bool), -np.asarray(widths, dtype=np.float64), -np.inf)
+    return relabel_too_tall(scores, source, judged, -np.asarray(min_width, dtype=np.float64), narrower_is)
 
 
 def most_confident(dets: list, k: int) -> list:
