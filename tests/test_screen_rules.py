@@ -117,3 +117,33 @@ def test_stage_1_calls_a_whole_couch_under_one_metre_its_next_class(half_width, 
     assert out.modeled.defined.tolist() == [True]
     assert out.modeled.boxes.size[0, :2].max() == pytest.approx(2 * half_width, abs=0.03)
     assert SEATS[int(top_class(out.scores[0]))] == expected
+
+
+# modeling.defined_min_width (issue 9, fourteenth round): no whole bed is 1.5 m long.
+def test_not_whole_by_hand():
+    from ltc_cli.pipeline.frame_modeling import not_whole
+
+    # Defined 1.1 m under a 1.5 m bound: partial; 1.9 m: stays Defined; a partial box stays partial;
+    # a class with no bound (0) stays Defined however small.
+    out = not_whole(np.array([True, True, False, True]), np.array([1.1, 1.9, 1.1, 0.3]),
+                    np.array([1.5, 1.5, 1.5, 0.0]))
+    assert out.tolist() == [False, True, False, True]
+
+
+@pytest.mark.parametrize("half_width, bound, defined", [
+    (0.4, {"bed": 1.5}, False),   # a whole-looking 0.8 m "bed": a part of one
+    (0.8, {"bed": 1.5}, True),    # 1.6 m: whole
+    (0.4, {}, True),              # {}: the paper (every corner visible, so Defined)
+])
+def test_stage_1_never_calls_a_bed_box_shorter_than_any_bed_whole(half_width, bound, defined):
+    """The fully visible block of the couch test above, detected as bed 0.9 (no rule moves its
+    class): Defined by its corners, and not whole by its size."""
+    cfg = defaults()
+    cfg["modeling"].update(floor_classes=[], class_depth={}, thin_extent=0.01, defined_min_width=bound)
+    depth, masks = render([(2.0, 2.3, -half_width, half_width, 0.2, 0.8)], wall_x=4.0)
+    out = model_frame(masks, [np.array([0.05, 0.05, 0.9, 0.0])], depth, T_world_camera(), INTR, (0.3, 6.0), cfg,
+                      ClassFlags.from_settings(SEATS, cfg))
+    assert out.modeled.boxes.visible.all()
+    assert out.modeled.boxes.size[0, :2].max() == pytest.approx(2 * half_width, abs=0.03)
+    assert out.modeled.defined.tolist() == [defined]
+    assert SEATS[int(top_class(out.scores[0]))] == "bed"

@@ -31,7 +31,8 @@ class ClassFlags:
     never taller than (inf: none), and taller_is: the class such a box is then (-1: none;
     NEXT: the detection's own next most likely class); max_width and wider_is: the same for the
     longer side of the box's footprint; min_width and narrower_is: the longer side a Defined box
-    of the class is never under (0: none) and the class such a box is then; weighted: the classes whose mask points count for the
+    of the class is never under (0: none) and the class such a box is then; whole_width: the
+    longer side under which a box of the class is never whole (0: none); weighted: the classes whose mask points count for the
     pixels they stand for (``pixel_weights`` as a class list; None: as ``pixel_weights`` says for
     all).
     """
@@ -46,6 +47,7 @@ class ClassFlags:
     weighted: np.ndarray | None = None
     min_width: np.ndarray | None = None
     narrower_is: np.ndarray | None = None
+    whole_width: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
@@ -61,13 +63,15 @@ class ClassFlags:
                     np.array([-1 if c not in rules else NEXT if rules[c]["is"] == "next" else pos[rules[c]["is"]]
                               for c in classes] + [-1]))
 
+        wholes = config["modeling"].get("defined_min_width") or {}
         weights = config["modeling"]["pixel_weights"]
         weighted = np.array([c in weights for c in classes] + [False]) if isinstance(weights, list) else None
         return cls(np.array([c in moving for c in classes] + [False]),
                    np.array([c in floor for c in classes] + [False]),
                    np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]),
                    *bounds("taller_than", "height"), *bounds("wider_than", "width"), weighted,
-                   *bounds("narrower_than", "width", 0.0))
+                   *bounds("narrower_than", "width", 0.0),
+                   np.array([float(wholes.get(c, 0.0)) for c in classes] + [0.0]))
 
 
 @dataclass
@@ -134,6 +138,9 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     if flags.min_width is not None and (flags.min_width > 0).any() and len(modeled.source):
         scores = relabel_too_narrow(scores, modeled.source, modeled.boxes.size[:, :2].max(axis=1), modeled.defined,
                                     flags.min_width, flags.narrower_is)
+    if flags.whole_width is not None and (flags.whole_width > 0).any() and len(modeled.source):
+        top = np.array([int(top_class(scores[int(i)])) for i in modeled.source], dtype=int)
+        modeled.defined = not_whole(modeled.defined, modeled.boxes.size[:, :2].max(axis=1), flags.whole_width[top])
     return FrameModel(detections, scores, modeled)
 
 
@@ -199,6 +206,15 @@ def relabel_too_narrow(scores: list[np.ndarray], source: np.ndarray, widths: np.
     is not one."""
     judged = np.where(np.asarray(defined, dtype=bool), -np.asarray(widths, dtype=np.float64), -np.inf)
     return relabel_too_tall(scores, source, judged, -np.asarray(min_width, dtype=np.float64), narrower_is)
+
+
+def not_whole(defined: np.ndarray, widths: np.ndarray, whole_width: np.ndarray) -> np.ndarray:
+    """The Defined flags (M,) of boxes whose footprint's longer side ``widths`` (M,) is at least the
+    ``whole_width`` (M,) of their class (0: any): a box shorter than any whole object of its class
+    is a part of one, whatever its corners say. A bed's foot end seen through a doorway comes out
+    with every corner visible, and a Defined box is never reshaped by the partial views of the
+    whole bed that follow (two boxes on one bed)."""
+    return np.asarray(defined, dtype=bool) & ~(np.asarray(widths, dtype=np.float64) < np.asarray(whole_width))
 
 
 def most_confident(dets: list, k: int) -> list:
