@@ -32,9 +32,9 @@ class ClassFlags:
     NEXT: the detection's own next most likely class); max_width and wider_is: the same for the
     longer side of the box's footprint; min_width and narrower_is: the longer side a Defined box
     of the class is never under (0: none) and the class such a box is then; whole_width: the
-    longer side under which a box of the class is never whole (0: none); weighted: the classes whose mask points count for the
-    pixels they stand for (``pixel_weights`` as a class list; None: as ``pixel_weights`` says for
-    all).
+    longer side under which a box of the class is never whole (0: none); weighted: the classes
+    whose mask points count for the pixels they stand for (``pixel_weights`` as a class list;
+    None: as ``pixel_weights`` says for all).
     """
 
     moving: np.ndarray
@@ -130,17 +130,17 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     scores = list(scores)
     if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
         scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, 2], flags.max_height, flags.taller_is)
+    longer = modeled.boxes.size[:, :2].max(axis=1) if len(modeled.source) else np.zeros(0)
     if flags.max_width is not None and np.isfinite(flags.max_width).any() and len(modeled.source):
         # A box is seen narrower than its object (a part of it), never wider: a 0.56 m wide
         # "laptop" is no laptop (tum-fr1-rpy's fourth monitor, only its top edge in view).
-        scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, :2].max(axis=1), flags.max_width,
-                                  flags.wider_is)
+        scores = relabel_too_tall(scores, modeled.source, longer, flags.max_width, flags.wider_is)
     if flags.min_width is not None and (flags.min_width > 0).any() and len(modeled.source):
-        scores = relabel_too_narrow(scores, modeled.source, modeled.boxes.size[:, :2].max(axis=1), modeled.defined,
-                                    flags.min_width, flags.narrower_is)
+        scores = relabel_too_narrow(scores, modeled.source, longer, modeled.defined, flags.min_width,
+                                    flags.narrower_is)
     if flags.whole_width is not None and (flags.whole_width > 0).any() and len(modeled.source):
-        top = np.array([int(top_class(scores[int(i)])) for i in modeled.source], dtype=int)
-        modeled.defined = not_whole(modeled.defined, modeled.boxes.size[:, :2].max(axis=1), flags.whole_width[top])
+        box_top = np.array([int(top_class(scores[int(i)])) for i in modeled.source], dtype=int)
+        modeled.defined = not_whole(modeled.defined, longer, flags.whole_width[box_top])
     return FrameModel(detections, scores, modeled)
 
 
