@@ -6,9 +6,11 @@ counted in their READMEs, ids kept on ``--revisit``, a reversed-order pass, fram
                                     [--keep DIR]
 
 Each recording is mapped three times: forward (timed: detection + mapping, one thread), forward
-again as a ``--revisit`` of the same map, and in reverse frame order into a new map. The detector
-runs once per frame; the revisit and the reverse pass replay its detections (the detector is
-deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
+again as a ``--revisit`` of the same map, and in reverse frame order into a new map. Then the
+ways a robot drives a route again: the session-1 map revisited in reverse order, and both sessions
+at half the frame rate (every other frame). The detector runs once per frame; the other passes
+replay its detections (the detector is deterministic), so they cost only the mapping. Needs
+../shared; prints what it measured.
 """
 
 from __future__ import annotations
@@ -69,8 +71,12 @@ class Replay:
         return self.store[key]
 
 
-class Reversed:
-    """Any recording with its frames in reverse order (the same route driven backwards)."""
+class Reordered:
+    """Any recording with its frames in reverse order (the same route driven backwards), or every
+    ``step``-th frame of it (a lower frame rate)."""
+
+    def __init__(self, reverse: bool = False, step: int = 1):
+        self.reverse, self.step = reverse, step
 
     def sniff(self, path) -> bool:
         return False
@@ -79,7 +85,8 @@ class Reversed:
         from ltc_cli.recordings.open import open_recording
 
         rec = open_recording(path)
-        return replace(rec, frames=list(reversed(rec.frames)))
+        frames = list(reversed(rec.frames)) if self.reverse else list(rec.frames)
+        return replace(rec, frames=frames[::self.step])
 
 
 class BenchPlugin:
@@ -89,7 +96,8 @@ class BenchPlugin:
 
     @hookimpl
     def register_readers(self, register):
-        register("reversed", Reversed())
+        register("reversed", Reordered(reverse=True))
+        register("every-other", Reordered(step=2))
 
 
 def dining_room(tmp: Path) -> Path:
@@ -136,7 +144,8 @@ def main():
     ap.add_argument("--recordings", default="tum-fr1-rpy,dining-room")
     ap.add_argument("--set", dest="sets", action="append", default=[])
     ap.add_argument("--keep", metavar="DIR", help="write the maps here (NAME.h5 after the revisit, "
-                    "NAME-session1.h5, NAME-reversed.h5) to draw or query them")
+                    "NAME-session1.h5, NAME-reversed.h5, NAME-revisit-reversed.h5, NAME-every-other.h5) "
+                    "to draw or query them")
     args = ap.parse_args()
     if not Path(args.model).is_file():
         sys.exit(f"bench_real: {args.model}: model not found (needs ../shared)")
@@ -152,6 +161,7 @@ def main():
             s = ingest([path], m, load_config(None, sets))
             wall, cpu = time.perf_counter() - t0, time.process_time() - c0
             first, ids1 = census(m)
+            shutil.copyfile(m, tmp / f"{name}-s1.h5")
             if args.keep:
                 Path(args.keep).mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(m, Path(args.keep) / f"{name}-session1.h5")
@@ -159,9 +169,19 @@ def main():
             second, ids2 = census(m)
             ingest([path], m_rev, load_config(None, sets), reader="reversed")
             rev, _ = census(m_rev)
+            m_back, m_half = tmp / f"{name}-back.h5", tmp / f"{name}-half.h5"
+            shutil.copyfile(tmp / f"{name}-s1.h5", m_back)
+            ingest([path], m_back, load_config(None, sets), reader="reversed", revisit=True)
+            back, ids_back = census(m_back)
+            ingest([path], m_half, load_config(None, sets), reader="every-other")
+            half1, ids_half1 = census(m_half)
+            ingest([path], m_half, load_config(None, sets), reader="every-other", revisit=True)
+            half2, ids_half2 = census(m_half)
             if args.keep:
                 shutil.copyfile(m, Path(args.keep) / f"{name}.h5")
                 shutil.copyfile(m_rev, Path(args.keep) / f"{name}-reversed.h5")
+                shutil.copyfile(m_back, Path(args.keep) / f"{name}-revisit-reversed.h5")
+                shutil.copyfile(m_half, Path(args.keep) / f"{name}-every-other.h5")
             classes = sorted(set(first) | set(second) | set(rev) | set(TRUTH.get(name, {})))
             print(f"\n{name}: {s.frames_done} frames, {s.frames_done / wall:.1f} frames/s "
                   f"({1000 * cpu / max(s.frames_done, 1):.0f} ms CPU per frame, detection included, one thread)")
@@ -178,6 +198,15 @@ def main():
             print(f"  session 1: {verdict(name, first)}")
             print(f"  reversed:  {verdict(name, rev)}; largest per-class difference from session 1: "
                   f"{max((abs(first.get(c, 0) - rev.get(c, 0)) for c in classes), default=0)}")
+            n_back, n_h1, n_h2 = (sum(c.values()) for c in (back, half1, half2))
+            print(f"  revisit in reverse order: objects {n1} -> {n_back}; ids kept "
+                  f"{len(ids1 & ids_back) / max(len(ids1), 1):.0%}; {verdict(name, back)}")
+            for line in lost_ids(m_back, ids1 - ids_back):
+                print(f"    lost: {line}")
+            print(f"  every other frame: session 1 {n_h1} objects ({verdict(name, half1)}); revisit {n_h2} "
+                  f"objects, ids kept {len(ids_half1 & ids_half2) / max(len(ids_half1), 1):.0%}")
+            for line in lost_ids(m_half, ids_half1 - ids_half2):
+                print(f"    lost: {line}")
 
 
 if __name__ == "__main__":

@@ -59,6 +59,7 @@ class AssociationSettings(TypedDict):
     merge_partial_defined_volume: float
     stand_gap: Optional[float]
     merge_min_overlap: Optional[float]
+    established_apart: bool
     stand_margin: float
     merge_containment: Optional[float]
     merge_current_box: bool

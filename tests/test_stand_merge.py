@@ -75,6 +75,58 @@ def test_a_partial_box_does_not_merge_with_the_neighbour_its_corners_touch():
     assert merged(0.03, [False, False]) == [(0, 1)]       # 0.04 >= 0.03
 
 
+def test_two_defined_boxes_of_earlier_sessions_keep_the_overlap_test():
+    """established_apart: the same two monitors, both Defined. Made in an earlier session, both of
+    them, they need the 0.2 of the footprint too (0.04 < 0.2: apart); one of them made in this
+    session, the Defined exemption stands (all 8 vertices compared: they merge)."""
+    def merged(established, x=0.48):
+        pair = Boxes(np.array([[0.0, 0, 1], [x, 0, 1]]), np.zeros(2), np.array([[0.5, 0.1, 0.4]] * 2),
+                     np.ones((2, 8), bool))
+        return [(a, b) for _, a, b in duplicate_pairs(
+            pair, np.array([TV, TV]), lambda one, many: np.zeros(len(many)), 0.4, 0.25, None, None,
+            min_overlap=0.2, defined=np.array([True, True]), established=np.array(established))]
+
+    assert merged([True, True]) == []
+    assert merged([True, False]) == [(0, 1)]
+    assert merged([False, False]) == [(0, 1)]
+    # Sharing half of the footprint (0.25 apart: 0.25 x 0.1 of 0.05 m²), they merge whatever their age.
+    assert merged([True, True], x=0.25) == [(0, 1)]
+
+
+def test_an_object_of_an_earlier_session_is_never_a_part():
+    """stand_pairs with established flags: the foot (1) under the screen (0) is its part when the
+    foot was made in this session, whatever the screen's age; made in an earlier one, it is not."""
+    rows = [0, 1]
+    for established, expected in (([False, False], [(0, 1)]), ([True, False], [(0, 1)]),
+                                  ([False, True], []), ([True, True], [])):
+        pairs = stand_pairs(boxes(rows), TOP[rows], 0.05, 0.05, established=np.array(established))
+        assert [(a, b) for _, a, b in pairs] == expected, established
+
+
+@pytest.mark.parametrize("apart", [False, True])
+def test_on_a_revisit_two_established_monitors_stay_two(apart):
+    """Through the mapper, session 1 (a revisit), no detections, static policy: two Defined tvs
+    made in session 0, 0.48 m apart, their footprints sharing 0.02 x 0.1 m (0.04 of either), and
+    eq. 2 over their 8 vertices 0.48 (under a same-class threshold of 0.5 set for this test). With
+    established_apart they stay two; without it the older one absorbs the other."""
+    cfg = defaults()
+    cfg["association"]["threshold_same_class"] = 0.5
+    cfg["association"]["established_apart"] = apart
+    smap = SemanticMap.new(CLASSES)
+    v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
+    v[TV], v[-1] = 0.9, 0.0
+    for y in (-0.24, 0.24):
+        smap.objects.append(center=np.array([2.2, y, 1.2]), yaw=0.0, size=np.array([0.1, 0.5, 0.4]),
+                            visible=np.ones(8, bool), defined=True, scores=v, n_det=30, status=ACTIVE,
+                            first_session=0, last_session=0)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=1)
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    assert list(mapper.map.objects.status[:2]) == ([ACTIVE, ACTIVE] if apart else [ACTIVE, MERGED])
+    assert res.merged == (0 if apart else 1)
+
+
 @pytest.mark.parametrize("gap", [None, 0.05])
 def test_the_foot_joins_the_screen_which_keeps_its_box_label_and_id(gap):
     """A map with the screen (0, detected 40 times) and its foot (1, "mouse", 60 times: more often

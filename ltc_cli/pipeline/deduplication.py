@@ -21,7 +21,8 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
                     need_same: float | None, need_other: float | None,
                     other_volume_ratio: float | None = None, reach: float | None = None,
                     other_scale: float | None = None, min_overlap: float | None = None,
-                    defined: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                    defined: np.ndarray | None = None, established: np.ndarray | None = None
+                    ) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -33,6 +34,12 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     ``reach``: the metric's distance is never less than the boxes' centre distance less their half
     diagonals (:func:`within_reach`); then only pairs within ``reach`` metres beyond that are
     compared (the same pairs result). None: every pair.
+
+    ``min_overlap`` (a share of the smaller footprint) holds for pairs with a partial box; two
+    Defined boxes (``defined`` (M,) bool) are compared on all 8 vertices and are exempt, unless both
+    are ``established`` ((M,) bool: made in an earlier session). Two objects the map kept apart
+    through a whole session are two things; on a revisit a box that shrank to one monitor's
+    visible part put eq. 2 under the threshold of its neighbour's (tum-fr1-rpy, 0.45 m apart).
     """
     m = len(boxes)
     if m < 2:
@@ -68,7 +75,10 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             area = boxes.size[:, 0] * boxes.size[:, 1]
             apart = inter < min_overlap * np.minimum(area[a], area[rest])
             if defined is not None:  # all 8 vertices of two Defined boxes are compared
-                apart &= ~(defined[a] & defined[rest])
+                exempt = defined[a] & defined[rest]
+                if established is not None:
+                    exempt &= ~(established[a] & established[rest])
+                apart &= ~exempt
             close &= ~apart
         if need_same:
             close |= contained[a, rest]
@@ -161,7 +171,7 @@ def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, fi
 
 
 def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: float = 0.05,
-                min_cover: float = 0.5) -> list[tuple[float, int, int]]:
+                min_cover: float = 0.5, established: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view, top classes (M,)) in which a smaller object of another
     class stands right under a larger one: its top within ``max_gap`` metres of the other's bottom,
     its bottom lower, and at least ``min_cover`` of its footprint under the other's footprint grown
@@ -171,6 +181,11 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     "mouse" (tum-fr1-rpy: the front monitor's foot, 33 detections, 4.5 cm under the screen's box).
     Separate things rest on what is under them (a cup on a table is above it); nothing else stands
     in the hand's breadth under a monitor's screen.
+
+    ``established`` (M,) bool: made in an earlier session; when given, such an object is never
+    another's part. The map held it as a thing of its own through a whole session: on revisits of
+    tum-fr1-rpy a cup of 67 detections went into a new box of the monitor behind it, and a book
+    flat on the desk under a mouse's bottom (the two side by side) into the mouse.
     """
     m = len(boxes)
     if max_gap is None or m < 2:
@@ -184,6 +199,8 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     gap = np.abs(z0[None, :] - z1[:, None])  # [a, b]: a's top to b's bottom
     ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & (gap <= max_gap) \
         & (z0[:, None] < z0[None, :])
+    if established is not None:
+        ok &= ~np.asarray(established, dtype=bool)[:, None]
     out = []
     for a, b in zip(*np.nonzero(ok)):
         cover = convex_intersection_area(boxes.corners[a:a + 1, :4, :2], grown.corners[b:b + 1, :4, :2])[0] / area[a]
@@ -193,20 +210,23 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
 
 
 def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: float | None = None,
-                defined: np.ndarray | None = None, first_session: np.ndarray | None = None
-                ) -> list[tuple[float, int, int]]:
+                defined: np.ndarray | None = None, first_session: np.ndarray | None = None,
+                session: int | None = None) -> list[tuple[float, int, int]]:
     """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
     association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
     inside the other by ``merge_containment``, default ``containment``), then one object under two
     labels (:func:`relabel_pairs`, keys past any distance), then the later partial view of a Defined
     object (:func:`partial_defined_pairs`, when ``defined`` and ``first_session`` (M,) are given).
     The overlap rules all stand down with ``containment`` off (the paper: vertex distance only).
-    ``reach``: as for duplicate_pairs."""
+    ``reach``: as for duplicate_pairs. ``session``: the current one; with ``established_apart`` and
+    ``first_session``, objects made before it are ``established`` for duplicate_pairs."""
     overlap = a_cfg["containment"] is not None
+    established = first_session < session if a_cfg["established_apart"] and first_session is not None \
+        and session is not None else None
     pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                             overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
-                            a_cfg["other_class_scale"], a_cfg["merge_min_overlap"], defined)
+                            a_cfg["other_class_scale"], a_cfg["merge_min_overlap"], defined, established)
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

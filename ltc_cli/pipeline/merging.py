@@ -27,7 +27,7 @@ class InstanceMerging:
             return 0
         a_cfg = self.cfg["association"]
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
-                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows])
+                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
@@ -42,7 +42,8 @@ class InstanceMerging:
             return 0
         t = self.map.objects
         vol = np.prod(t.size[rows], axis=1)
-        pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"])
+        pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"],
+                            established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
         for keep, drop in merges:
             keep, drop = int(rows[keep]), int(rows[drop])
