@@ -1,0 +1,126 @@
+"""A robot drives its route again in another way: tum-fr1-rpy (../shared) mapped with the shared
+fp32 YOLOv8n-seg, then revisited in reverse frame order, at half the frame rate, and in a mix of
+the two over four sessions. Every id of the first session stays and every class stays within the
+counts of the recording's README (issue 9; docs/decisions.md, fifteenth round: before
+``association.established_apart`` the reversed revisit kept 83 % of the ids, the half-rate
+sessions 70 % and the four-session mix 92 %). Skipped when ../shared is absent.
+
+The detector runs once per frame; later passes replay its detections (it is deterministic).
+"""
+
+import shutil
+from collections import Counter
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ltc_cli import hookimpl, plugins
+from ltc_cli.config import load_config
+from ltc_cli.ingest.session import ingest
+from ltc_cli.map.model import ACTIVE, top_class
+from ltc_cli.map.store import load_map
+
+SHARED = Path(__file__).resolve().parents[2] / "shared"
+DATA = SHARED / "data" / "tum-fr1-rpy"
+MODEL = SHARED / "models" / "yolov8n-seg_fp32.onnx"
+
+pytestmark = pytest.mark.skipif(not (DATA.is_dir() and MODEL.is_file()), reason="../shared data or model absent")
+
+# What is in view, by the recording's README (fewest, most per class; a class not listed must not
+# be in the map): two flat monitors side by side and a smaller one on the far desk (the frames show
+# a fourth behind the front one, docs/decisions.md tenth round), a keyboard, a mouse (the monitors'
+# feet are called mouse too), a mug, a few books, two chairs, and the man at the desk, never mapped.
+TRUTH = {"tv": (2, 4), "keyboard": (1, 2), "mouse": (1, 2), "cup": (1, 2), "book": (0, 4), "chair": (1, 2),
+         "dining table": (0, 2)}
+
+
+class Cached:
+    """The shared model, each frame detected once per test module."""
+
+    thread_safe = True
+    store: dict = {}
+
+    def __init__(self, recording, options):
+        self.inner = plugins.get("detectors", "onnx-yolo-seg").factory(recording, options)
+        self.classes = self.inner.classes
+
+    def detect(self, frame):
+        if frame.key not in self.store:
+            self.store[frame.key] = self.inner.detect(frame)
+        return self.store[frame.key]
+
+
+class Reordered:
+    def __init__(self, reverse, step):
+        self.reverse, self.step = reverse, step
+
+    def sniff(self, path):
+        return False
+
+    def open(self, path, options):
+        from ltc_cli.recordings.open import open_recording
+
+        rec = open_recording(path)
+        frames = list(reversed(rec.frames)) if self.reverse else list(rec.frames)
+        return replace(rec, frames=frames[::self.step])
+
+
+class RevisitPlugin:
+    @hookimpl
+    def register_detectors(self, register):
+        register("cached-yolo", Cached)
+
+    @hookimpl
+    def register_readers(self, register):
+        for name, reverse, step in (("forward", False, 1), ("reversed", True, 1), ("half", False, 2),
+                                    ("reversed-half", True, 2)):
+            register(name, Reordered(reverse, step))
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    """ingest(reader, map, revisit) with the cached detector; the plugin is removed afterwards."""
+    plugins.register_plugin(RevisitPlugin(), name="test-real-revisits")
+    cfg = ["detector.name=cached-yolo", f"detector.options.model={MODEL}"]
+
+    def run(reader, m, revisit=False):
+        ingest([DATA], m, load_config(None, cfg), reader=reader, revisit=revisit)
+        return census(m)
+
+    yield run
+    plugins.unregister_plugin("test-real-revisits")
+
+
+def census(m) -> tuple[Counter, set]:
+    smap = load_map(m)
+    rows = np.flatnonzero(smap.objects.status == ACTIVE)
+    return Counter(smap.classes[int(c)] for c in top_class(smap.objects.scores[rows])), set((rows + 1).tolist())
+
+
+def within_truth(counts: Counter, slack: int = 0) -> list[str]:
+    """The classes whose count is off the README's by more than ``slack``."""
+    off = [f"{c} {n}" for c, n in counts.items() if not TRUTH.get(c, (0, 0))[0] - slack <= n <= TRUTH.get(c, (0, 0))[1] + slack]
+    return off + [f"{c} 0" for c, (lo, _) in TRUTH.items() if lo > slack and counts.get(c, 0) == 0]
+
+
+def test_forward_then_reversed_then_half_rate_sessions_keep_every_id(session, tmp_path):
+    """Counts after the revisits within one of the README's: from the third session on the front
+    monitor's foot is a third "mouse" (its top reaches into the screen's box, which grew down over
+    the sessions, so the stand rule no longer takes it; docs/decisions.md, fifteenth round)."""
+    m = tmp_path / "map.h5"
+    first, ids1 = session("forward", m)
+    assert within_truth(first) == []
+    for reader in ("reversed", "half", "reversed-half"):
+        counts, ids = session(reader, m, revisit=True)
+        assert ids1 <= ids, f"{reader}: lost {sorted(ids1 - ids)}"
+        assert within_truth(counts, slack=1) == [], reader
+
+
+def test_two_sessions_at_half_the_frame_rate_keep_every_id(session, tmp_path):
+    m = tmp_path / "map.h5"
+    first, ids1 = session("half", m)
+    second, ids2 = session("half", m, revisit=True)
+    assert within_truth(first) == [] and within_truth(second) == []
+    assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
