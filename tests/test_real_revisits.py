@@ -8,7 +8,6 @@ sessions 70 % and the four-session mix 92 %). Skipped when ../shared is absent.
 The detector runs once per frame; later passes replay its detections (it is deterministic).
 """
 
-import shutil
 from collections import Counter
 from dataclasses import replace
 from pathlib import Path
