@@ -10,7 +10,7 @@ from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
 from ltc_cli.pipeline.deduplication import duplicate_pairs, stand_pairs
-from ltc_cli.pipeline.integration import keeps_established_box
+from ltc_cli.pipeline.integration import confirmed_side
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera
 from tests.test_identity import CLASSES
@@ -163,41 +163,42 @@ def test_the_foot_joins_the_screen_which_keeps_its_box_label_and_id(gap):
     assert [(e.kind, e.object_id, e.other_id) for e in mapper.map.events if e.kind == "merged"] == [("merged", 1, 2)]
 
 
-def test_keeps_established_box_by_hand():
-    # Another class, the older one of an earlier session, the newer one tentative: the box stays.
-    assert keeps_established_box(TV, TABLE, True, True)
-    # One class (pieces of one object), a newer one confirmed (it may be the object, moved), or an
-    # older one of this session: the merge's own box.
-    assert not keeps_established_box(TV, TV, True, True)
-    assert not keeps_established_box(TV, TABLE, True, False)
-    assert not keeps_established_box(TV, TABLE, False, True)
+def test_confirmed_side_by_hand():
+    # Another class and only one of the two tentative: the other one's box.
+    assert confirmed_side(TV, TABLE, False, True) == "older"
+    assert confirmed_side(TV, TABLE, True, False) == "newer"
+    # One class (pieces of one object), or both tentative, or both confirmed: the merge's own box.
+    assert confirmed_side(TV, TV, False, True) is None
+    assert confirmed_side(TV, TABLE, True, True) is None
+    assert confirmed_side(TV, TABLE, False, False) is None
 
 
-@pytest.mark.parametrize("apart,table_det", [(False, 1), (True, 1), (True, 2)])
-def test_a_new_object_of_another_class_does_not_reshape_an_established_one(apart, table_det):
-    """Session 1, no detections, static policy. The map holds a partial tv made in session 0 (30
-    detections; x 2.0..2.4, y -0.25..0.25, z 0.6..1.4: 0.16 m³) and a partial "dining table" made
-    in this session (table_det detections; x 1.6..2.8, y -0.5..0.5, z 0.2..1.4: 1.44 m³). The tv lies wholly
-    inside the table and their volume ratio, 0.16 / 1.44 = 0.11, is within other_class_volume_ratio
-    (0.1), so they merge by cross-class containment (0.7). The older id (the tv, an earlier session's) stays; with established_apart its
-    box stays exactly as it was while the table is tentative (one detection, under min_detections 2);
-    without the rule, or with the table confirmed (two detections), the merge reshapes it."""
+@pytest.mark.parametrize("reshapes,table_det,session", [(True, 1, 1), (False, 1, 1), (False, 2, 1), (False, 1, 0)])
+def test_a_tentative_object_of_another_class_does_not_reshape_a_confirmed_one(reshapes, table_det, session):
+    """No detections, static policy. The map holds a partial tv made in session 0 (30 detections;
+    x 2.0..2.4, y -0.25..0.25, z 0.6..1.4: 0.16 m³) and a partial "dining table" made in the
+    current session (table_det detections; x 1.6..2.8, y -0.5..0.5, z 0.2..1.4: 1.44 m³). The tv
+    lies wholly inside the table and their volume ratio, 0.16 / 1.44 = 0.11, is within
+    other_class_volume_ratio (0.1), so they merge by cross-class containment (0.7), and the older id
+    (the tv) stays. With tentative_reshapes false its box stays exactly as it was while the table is
+    tentative (one detection, under min_detections 2), in session 1 as in session 0; with it true,
+    or with the table confirmed (two detections), the merge reshapes it."""
     cfg = defaults()
-    cfg["association"]["established_apart"] = apart
+    cfg["association"]["tentative_reshapes"] = reshapes
     smap = SemanticMap.new(CLASSES)
     tv_box = (np.array([2.2, 0.0, 1.0]), np.array([0.4, 0.5, 0.8]))
     for cls, (center, size), n_det, first in ((TV, tv_box, 30, 0),
-                                             (TABLE, (np.array([2.2, 0.0, 0.8]), np.array([1.2, 1.0, 1.2])), table_det, 1)):
+                                             (TABLE, (np.array([2.2, 0.0, 0.8]), np.array([1.2, 1.0, 1.2])), table_det, session)):
         v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
         v[cls], v[-1] = 0.9, 0.0
         smap.objects.append(center=center, yaw=0.0, size=size, visible=np.zeros(8, bool), defined=False,
                             scores=v, n_det=n_det, status=ACTIVE, first_session=first, last_session=first)
     mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=1)
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=session)
     depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
     mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
     t = mapper.map.objects
     assert list(t.status[:2]) == [ACTIVE, MERGED]
     assert int(np.argmax(t.scores[0][:-1])) == TV
     same = np.allclose(t.center[0], tv_box[0]) and np.allclose(t.size[0], tv_box[1])
-    assert same == (apart and table_det < cfg["maintenance"]["min_detections"])
+    assert same == (not reshapes and table_det < cfg["maintenance"]["min_detections"])

@@ -159,16 +159,18 @@ def moved_elsewhere(det: Box, obj: Box, stale: bool) -> bool:
     return float(iou[0, 0]) <= 0.0
 
 
-def keeps_established_box(top_older: int, top_newer: int, older_established: bool, newer_tentative: bool) -> bool:
-    """True when a merge of two map objects keeps the older one's box as it is: their top classes
-    differ, the older one was made in an earlier session and the newer one is tentative (made in
-    this session, detected fewer times than confirmation needs). That the two are one object under
-    two labels is then the claim of an unconfirmed detection; its class evidence fuses (eq. 3), its
-    box does not reshape one the map has held through a session (on a reversed revisit of
-    tum-fr1-rpy a "dining table" of one detection over the desk stretched a monitor's box to 1.36 x
-    1.33 m, which then swallowed the front monitor). A confirmed newer object may be the object
-    itself, moved: a chair put elsewhere and called "couch" in its new place."""
-    return top_older != top_newer and older_established and newer_tentative
+def confirmed_side(top_older: int, top_newer: int, older_tentative: bool, newer_tentative: bool) -> str | None:
+    """Whose box a merge of two map objects keeps as it is: "older" or "newer" when their top
+    classes differ and only the other one is tentative (made in this session, detected fewer times
+    than confirmation needs); None otherwise (the merge's own box). That the two are one object
+    under two labels is then the claim of an unconfirmed detection: its class evidence fuses (eq.
+    3), its box does not reshape the confirmed one's. A one-detection Defined "chair" on a couch's
+    end gave the couch its 0.64 x 0.38 m box, which its later partial views could not grow (a
+    simulated house); on a reversed revisit of tum-fr1-rpy a one-detection "dining table" over the
+    desk stretched a monitor's box to 1.36 x 1.33 m, which then swallowed the front monitor."""
+    if top_older == top_newer or older_tentative == newer_tentative:
+        return None
+    return "newer" if older_tentative else "older"
 
 
 def merged_box(merged: Box, keep: Box, drop: Box, current: str | None, foreign: bool) -> Box:

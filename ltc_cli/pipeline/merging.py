@@ -14,7 +14,7 @@ from ltc_cli.pipeline.maintenance import tentative
 from ltc_cli.pipeline.association import match_reach
 from ltc_cli.pipeline.deduplication import greedy_merges, label_survivor, merge_pairs, stand_pairs
 from ltc_cli.pipeline.integration import (
-    keeps_established_box, label_weight, merge_objects, merged_box, merged_scores, stale_side,
+    confirmed_side, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
 
 
@@ -74,11 +74,13 @@ class InstanceMerging:
         w_old, w_new = self._merge_weights(older, newer)
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
-        if self.cfg["association"]["established_apart"] and keeps_established_box(
-                int(top_class(t.scores[older])), int(top_class(t.scores[newer])), t.first_session[older] < self.session,
-                tentative(int(t.first_session[newer]), int(t.n_det[newer]), self.session,
-                          self.cfg["maintenance"]["min_detections"])):
-            return b_old, scores
+        if not self.cfg["association"]["tentative_reshapes"]:
+            need = self.cfg["maintenance"]["min_detections"]
+            kept = confirmed_side(int(top_class(t.scores[older])), int(top_class(t.scores[newer])),
+                                  *(tentative(int(t.first_session[r]), int(t.n_det[r]), self.session, need)
+                                    for r in (older, newer)))
+            if kept is not None:
+                return (b_old if kept == "older" else b_new), scores
         side = stale_side(t.last_session[older] == self.session, t.last_session[newer] == self.session) \
             if self.cfg["association"]["merge_current_box"] else None
         return merged_box(box, b_old, b_new, side, self._foreign(t.scores[newer], t.scores[older], b_new, b_old)), scores
