@@ -22,7 +22,6 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from dataclasses import replace
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -37,6 +36,7 @@ from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
+from tests.replay import Reordered, Replay  # noqa: E402
 
 # ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
 SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
@@ -51,42 +51,6 @@ TRUTH = {
                     "chair": (1, 2), "laptop": (0, 0), "person": (0, 0), "dining table": (0, 2)},
     "dining-room": {"dining table": (1, 1), "chair": (1, 9), "couch": (1, 1), "person": (0, 0)},
 }
-
-
-class Replay:
-    """Wraps a detector: detects each frame once, then replays (shared by all passes)."""
-
-    thread_safe = True
-    store: dict = {}
-
-    def __init__(self, recording, options):
-        self.inner = plugins.get("detectors", "onnx-yolo-seg").factory(recording, options)
-        self.classes = self.inner.classes
-        self.identity = recording.identity
-
-    def detect(self, frame):
-        key = (self.identity, frame.key)
-        if key not in self.store:
-            self.store[key] = self.inner.detect(frame)
-        return self.store[key]
-
-
-class Reordered:
-    """Any recording with its frames in reverse order (the same route driven backwards), or every
-    ``step``-th frame of it (a lower frame rate)."""
-
-    def __init__(self, reverse: bool = False, step: int = 1):
-        self.reverse, self.step = reverse, step
-
-    def sniff(self, path) -> bool:
-        return False
-
-    def open(self, path, options):
-        from ltc_cli.recordings.open import open_recording
-
-        rec = open_recording(path)
-        frames = list(reversed(rec.frames)) if self.reverse else list(rec.frames)
-        return replace(rec, frames=frames[::self.step])
 
 
 class BenchPlugin:

@@ -9,7 +9,6 @@ The detector runs once per frame; later passes replay its detections (it is dete
 """
 
 from collections import Counter
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from ltc_cli.config import load_config
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.model import ACTIVE, top_class
 from ltc_cli.map.store import load_map
+from tests.replay import Reordered, Replay
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 DATA = SHARED / "data" / "tum-fr1-rpy"
@@ -35,41 +35,10 @@ TRUTH = {"tv": (2, 4), "keyboard": (1, 2), "mouse": (1, 2), "cup": (1, 2), "book
          "dining table": (0, 2)}
 
 
-class Cached:
-    """The shared model, each frame detected once per test module."""
-
-    thread_safe = True
-    store: dict = {}
-
-    def __init__(self, recording, options):
-        self.inner = plugins.get("detectors", "onnx-yolo-seg").factory(recording, options)
-        self.classes = self.inner.classes
-
-    def detect(self, frame):
-        if frame.key not in self.store:
-            self.store[frame.key] = self.inner.detect(frame)
-        return self.store[frame.key]
-
-
-class Reordered:
-    def __init__(self, reverse, step):
-        self.reverse, self.step = reverse, step
-
-    def sniff(self, path):
-        return False
-
-    def open(self, path, options):
-        from ltc_cli.recordings.open import open_recording
-
-        rec = open_recording(path)
-        frames = list(reversed(rec.frames)) if self.reverse else list(rec.frames)
-        return replace(rec, frames=frames[::self.step])
-
-
 class RevisitPlugin:
     @hookimpl
     def register_detectors(self, register):
-        register("cached-yolo", Cached)
+        register("cached-yolo", Replay)
 
     @hookimpl
     def register_readers(self, register):

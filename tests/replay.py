@@ -1,0 +1,46 @@
+"""Plugins for passes over one real recording (tests/test_real_revisits.py and
+benchmarks/bench_real.py): the shared model detecting each frame once and replaying it, and a
+reader that drives a recording in reverse order or at a lower frame rate."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from ltc_cli import plugins
+
+
+class Replay:
+    """Wraps the onnx-yolo-seg detector: detects each frame once, then replays (the detector is
+    deterministic, so later passes cost only the mapping)."""
+
+    thread_safe = True
+    store: dict = {}
+
+    def __init__(self, recording, options):
+        self.inner = plugins.get("detectors", "onnx-yolo-seg").factory(recording, options)
+        self.classes = self.inner.classes
+        self.identity = recording.identity
+
+    def detect(self, frame):
+        key = (self.identity, frame.key)
+        if key not in self.store:
+            self.store[key] = self.inner.detect(frame)
+        return self.store[key]
+
+
+class Reordered:
+    """Any recording with its frames in reverse order (the same route driven backwards), or every
+    ``step``-th frame of it (a lower frame rate)."""
+
+    def __init__(self, reverse: bool = False, step: int = 1):
+        self.reverse, self.step = reverse, step
+
+    def sniff(self, path) -> bool:
+        return False
+
+    def open(self, path, options):
+        from ltc_cli.recordings.open import open_recording
+
+        rec = open_recording(path)
+        frames = list(reversed(rec.frames)) if self.reverse else list(rec.frames)
+        return replace(rec, frames=frames[::self.step])
