@@ -10,12 +10,12 @@ import numpy as np
 
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, top_class
-from ltc_cli.pipeline.maintenance import tentative
 from ltc_cli.pipeline.association import match_reach
 from ltc_cli.pipeline.deduplication import greedy_merges, label_survivor, merge_pairs, stand_pairs
 from ltc_cli.pipeline.integration import (
     confirmed_side, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
+from ltc_cli.pipeline.maintenance import tentative
 
 
 class InstanceMerging:
@@ -74,16 +74,20 @@ class InstanceMerging:
         w_old, w_new = self._merge_weights(older, newer)
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+        # A whole box: the confirmed one's against a tentative label (tentative_reshapes false),
+        # else the one detected now (merge_current_box); the size rule for foreign boxes holds
+        # only when neither chose.
+        confirmed = None
         if not self.cfg["association"]["tentative_reshapes"]:
             need = self.cfg["maintenance"]["min_detections"]
-            kept = confirmed_side(int(top_class(t.scores[older])), int(top_class(t.scores[newer])),
-                                  *(tentative(int(t.first_session[r]), int(t.n_det[r]), self.session, need)
-                                    for r in (older, newer)))
-            if kept is not None:
-                return (b_old if kept == "older" else b_new), scores
-        side = stale_side(t.last_session[older] == self.session, t.last_session[newer] == self.session) \
-            if self.cfg["association"]["merge_current_box"] else None
-        return merged_box(box, b_old, b_new, side, self._foreign(t.scores[newer], t.scores[older], b_new, b_old)), scores
+            confirmed = confirmed_side(int(top_class(t.scores[older])), int(top_class(t.scores[newer])),
+                                       *(tentative(int(t.first_session[r]), int(t.n_det[r]), self.session, need)
+                                         for r in (older, newer)))
+        side = {"older": "keep", "newer": "drop"}.get(confirmed)
+        if side is None and self.cfg["association"]["merge_current_box"]:
+            side = stale_side(t.last_session[older] == self.session, t.last_session[newer] == self.session)
+        foreign = confirmed is None and self._foreign(t.scores[newer], t.scores[older], b_new, b_old)
+        return merged_box(box, b_old, b_new, side, foreign), scores
 
     def _survivor(self, rows: np.ndarray, a: int, b: int) -> int:
         """Which of rows[a] (older) and rows[b] (newer), about to merge, keeps its id (a or b)."""
