@@ -54,6 +54,7 @@ class AssociationSettings(TypedDict):
     containment_other_class: Optional[float]
     other_class_volume_ratio: Optional[float]
     partial_adjoin_gap: Optional[float]
+    partial_adjoin_share: Optional[dict[str, float]]
     merge_other_class_iou: Optional[float]
     merge_partial_defined_gap: Optional[float]
     merge_partial_defined_volume: float

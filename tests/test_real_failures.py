@@ -98,3 +98,38 @@ def test_footprint_gap_by_hand_and_adjoining_partial_views():
     assert adjoining_partial(gaps, same, partial, 0.05) == 0
     assert adjoining_partial(gaps, same, np.array([False, True, True, True]), 0.05) == -1
     assert adjoining_partial(gaps, same, partial, None) == -1
+
+
+def test_adjoining_gap_grows_with_the_longer_side_by_hand():
+    # Gaps 0.09 m to three partial candidates; the longer footprint side of each pair 1.6 m (a
+    # table's end against its other end), 0.5 m (two chairs side by side) and 0.4 m.
+    gaps = np.array([0.09, 0.09, 0.04])
+    long_sides = np.array([1.6, 0.5, 0.4])
+    partial = np.ones(3, bool)
+    # share 0.1: allowed 0.16, max(0.05, 0.05) = 0.05, 0.05 -> the table end and the 4 cm one.
+    assert adjoining_partial(gaps, np.array([True, True, False]), partial, 0.05, long_sides, 0.1) == 0
+    assert adjoining_partial(gaps, np.array([False, True, True]), partial, 0.05, long_sides, 0.1) == 2
+    assert adjoining_partial(gaps[:2], np.array([False, True]), partial[:2], 0.05, long_sides[:2], 0.1) == -1
+    # Without the share only the fixed gap counts.
+    assert adjoining_partial(gaps, np.array([True, True, False]), partial, 0.05, long_sides, None) == -1
+
+
+def test_a_table_end_nine_centimetres_from_its_other_end_joins_it():
+    # The dining room driven backwards: the table's far end (a partial object, y -0.5..0.11 m)
+    # was mapped first; now its near part is seen cut by the image's left edge (y 0.2..1.6 m in
+    # view at 2.5 m), its footprint about 9 cm from the object's: beyond the fixed 5 cm gap,
+    # within a tenth of its 1.4 m side.
+    def run(share):
+        cfg = defaults()
+        cfg["association"]["partial_adjoin_share"] = None if share is None else {"dining table": share}
+        mapper = make_mapper(cfg)
+        end = add_object(mapper, [3.0, -0.195, 0.375], [1.0, 0.61, 0.75], TABLE, n_det=2, defined=False)
+        res = frame(mapper, [(2.5, 3.5, 0.2, 2.5, 0.0, 0.75)], [TABLE])
+        return mapper, end, res
+
+    mapper, end, res = run(0.1)
+    t = mapper.map.objects
+    assert res.created == 0 and t.n_det[end] == 3
+    assert t.size[end, :2].max() > 1.9  # the union of both parts
+    mapper, end, res = run(None)
+    assert res.created == 1 and mapper.map.objects.n_det[end] == 2

@@ -223,16 +223,24 @@ def footprint_gaps(det: Boxes, cands: Boxes) -> np.ndarray:
     return np.where(np.minimum(zd1, zc1) > np.maximum(zd0, zc0), gap, np.inf)
 
 
-def adjoining_partial(gaps: np.ndarray, same_class: np.ndarray, cand_partial: np.ndarray, max_gap: float | None) -> int:
+def adjoining_partial(gaps: np.ndarray, same_class: np.ndarray, cand_partial: np.ndarray, max_gap: float | None,
+                      long_sides: np.ndarray | None = None, share: float | None = None) -> int:
     """The same-class partial candidate whose footprint touches a partial detection (gap within
     ``max_gap``), nearest first, or -1.
 
     Two partial views of one long object (a dining table seen end by end) neither contain each
-    other nor share vertices, but they adjoin; their enclosing box is the object.
+    other nor share vertices, but they adjoin; their enclosing box is the object. ``long_sides``
+    (M,): the longer footprint side of the detection or the candidate, whichever is longer; with
+    ``share``, the gap may also reach that share of it: a partial end of a 2 m table lies further
+    from the other end's box after thinning and a few centimetres of pose error than a chair's
+    would, and a fixed gap wide enough for the table joins chairs that stand side by side.
     """
     if max_gap is None or gaps.size == 0:
         return -1
-    ok = same_class & cand_partial & (gaps <= max_gap)
+    allowed = np.full(gaps.shape, float(max_gap))
+    if share is not None and long_sides is not None:
+        allowed = np.maximum(allowed, share * np.asarray(long_sides, float))
+    ok = same_class & cand_partial & (gaps <= allowed)
     if not ok.any():
         return -1
     return int(np.where(ok, gaps, np.inf).argmin())

@@ -60,6 +60,8 @@ class Mapper(InstanceMerging):
         active = smap.active_rows()
         self.index.build(active, t.center[active], t.size[active])
         self.flags = ClassFlags.from_settings(smap.classes, config)
+        shares = config["association"].get("partial_adjoin_share") or {}
+        self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
         self.rates = DetectionRates(smap, config["maintenance"])
         self._view = np.zeros(6)  # the camera's view of the frame being mapped (camera_view)
         v_empty = config["maintenance"]["v_other_seen_empty"]
@@ -183,9 +185,12 @@ class Mapper(InstanceMerging):
             return -1, False
         a_cfg, t = self.cfg["association"], self.map.objects
         reach = match_reach(self.metric, a_cfg)
+        share = float(self._adjoin_share[det_class]) if a_cfg["partial_adjoin_gap"] is not None else 0.0
         if reach is not None and rows.size > 8:  # only those that can match decide (the same decision)
-            rows = rows[within_reach(det.center[0], half_diagonals(det.size)[0], t.center[rows],
-                                     half_diagonals(t.size[rows]), reach)]
+            # An adjoining gap of share x the longer side is within 2 share x the half diagonals.
+            grow = 1.0 + 2.0 * share
+            rows = rows[within_reach(det.center[0], grow * half_diagonals(det.size)[0], t.center[rows],
+                                     grow * half_diagonals(t.size[rows]), reach)]
             if rows.size == 0:
                 return -1, False
         cand_classes = top_class(t.scores[rows])
@@ -203,8 +208,9 @@ class Mapper(InstanceMerging):
         best = containing_candidate(containment(det, cand), cand_classes == det_class, a_cfg["containment"],
                                     a_cfg["containment_other_class"], comparable)
         if best < 0 and not det_defined:
+            long_sides = np.maximum(det.size[0, :2].max(), cand.size[:, :2].max(axis=1))
             best = adjoining_partial(footprint_gaps(det, cand), cand_classes == det_class, ~t.defined[rows],
-                                     a_cfg["partial_adjoin_gap"])
+                                     a_cfg["partial_adjoin_gap"], long_sides, share)
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
