@@ -8,9 +8,9 @@ counted in their READMEs, ids kept on ``--revisit``, a reversed-order pass, fram
 Each recording is mapped three times: forward (timed: detection + mapping, one thread), forward
 again as a ``--revisit`` of the same map, and in reverse frame order into a new map. Then the
 ways a robot drives a route again: the session-1 map revisited in reverse order, and both sessions
-at half the frame rate (every other frame). The detector runs once per frame; the other passes
-replay its detections (the detector is deterministic), so they cost only the mapping. Needs
-../shared; prints what it measured.
+at half the frame rate (every other frame), and one session at a third of it (a detector at 10 Hz).
+The detector runs once per frame; the other passes replay its detections (the detector is
+deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
 
 from __future__ import annotations
@@ -62,6 +62,7 @@ class BenchPlugin:
     def register_readers(self, register):
         register("reversed", Reordered(reverse=True))
         register("every-other", Reordered(step=2))
+        register("every-third", Reordered(step=3))
 
 
 def dining_room(tmp: Path) -> Path:
@@ -108,7 +109,8 @@ def main():
     ap.add_argument("--recordings", default="tum-fr1-rpy,dining-room")
     ap.add_argument("--set", dest="sets", action="append", default=[])
     ap.add_argument("--keep", metavar="DIR", help="write the maps here (NAME.h5 after the revisit, "
-                    "NAME-session1.h5, NAME-reversed.h5, NAME-revisit-reversed.h5, NAME-every-other.h5) "
+                    "NAME-session1.h5, NAME-reversed.h5, NAME-revisit-reversed.h5, NAME-every-other.h5, "
+                    "NAME-every-third.h5) "
                     "to draw or query them")
     args = ap.parse_args()
     if not Path(args.model).is_file():
@@ -141,11 +143,15 @@ def main():
             half1, ids_half1 = census(m_half)
             ingest([path], m_half, load_config(None, sets), reader="every-other", revisit=True)
             half2, ids_half2 = census(m_half)
+            m_third = tmp / f"{name}-third.h5"
+            ingest([path], m_third, load_config(None, sets), reader="every-third")
+            third, _ = census(m_third)
             if args.keep:
                 shutil.copyfile(m, Path(args.keep) / f"{name}.h5")
                 shutil.copyfile(m_rev, Path(args.keep) / f"{name}-reversed.h5")
                 shutil.copyfile(m_back, Path(args.keep) / f"{name}-revisit-reversed.h5")
                 shutil.copyfile(m_half, Path(args.keep) / f"{name}-every-other.h5")
+                shutil.copyfile(m_third, Path(args.keep) / f"{name}-every-third.h5")
             classes = sorted(set(first) | set(second) | set(rev) | set(TRUTH.get(name, {})))
             print(f"\n{name}: {s.frames_done} frames, {s.frames_done / wall:.1f} frames/s "
                   f"({1000 * cpu / max(s.frames_done, 1):.0f} ms CPU per frame, detection included, one thread)")
@@ -171,6 +177,7 @@ def main():
                   f"objects, ids kept {len(ids_half1 & ids_half2) / max(len(ids_half1), 1):.0%}")
             for line in lost_ids(m_half, ids_half1 - ids_half2):
                 print(f"    lost: {line}")
+            print(f"  every third frame: {sum(third.values())} objects ({verdict(name, third)})")
 
 
 if __name__ == "__main__":

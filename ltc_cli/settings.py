@@ -61,6 +61,7 @@ class AssociationSettings(TypedDict):
     stand_gap: Optional[float]
     merge_min_overlap: Optional[float]
     established_apart: bool
+    labels_apart: bool
     tentative_reshapes: bool
     stand_margin: float
     merge_containment: Optional[float]

@@ -94,6 +94,25 @@ def test_two_defined_boxes_of_earlier_sessions_keep_the_overlap_test():
     assert merged([True, True], x=0.25) == [(0, 1)]
 
 
+def test_two_defined_boxes_of_different_labels_keep_the_overlap_test():
+    """labels_apart: a whole cup (0.1 x 0.1 m footprint) and a whole mouse beside it whose eq. 2
+    distance is under the threshold (0 stands for it). Footprints 0.2 m apart share nothing: with
+    labels_apart they stay two, without it the Defined exemption merges them; with the cup half
+    on the mouse's footprint (0.05 x 0.1 of the cup's 0.01 m^2: 0.5 >= 0.2) they merge either way.
+    A cup and a cup (one label) keep the exemption."""
+    def merged(labels_apart, y=0.2, top=(CUP, MOUSE)):
+        pair = Boxes(np.array([[2.2, 0.0, 0.8], [2.2, y, 0.8]]), np.zeros(2),
+                     np.array([[0.1, 0.1, 0.12], [0.1, 0.2, 0.04]]), np.ones((2, 8), bool))
+        return [(a, b) for _, a, b in duplicate_pairs(
+            pair, np.array(top), lambda one, many: np.zeros(len(many)), 0.4, 0.25, None, None,
+            min_overlap=0.2, defined=np.array([True, True]), labels_apart=labels_apart)]
+
+    assert merged(True) == []
+    assert merged(False) == [(0, 1)]
+    assert merged(True, y=0.1) == [(0, 1)]
+    assert merged(True, top=(CUP, CUP)) == [(0, 1)]
+
+
 def test_an_object_of_an_earlier_session_is_never_a_part():
     """stand_pairs with established flags: the foot (1) under the screen (0) is its part when the
     foot was made in this session, whatever the screen's age; made in an earlier one, it is not."""
