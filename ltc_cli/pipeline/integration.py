@@ -9,7 +9,7 @@ import numpy as np
 
 from ltc_cli.pipeline.association import vertex_distance
 from ltc_cli.geometry.boxes import SHIFTS, Box, align_yaw, box_corners, min_area_rect, wrap_yaw
-from ltc_cli.geometry.polygons import pairwise_ious_arrays
+from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
 from ltc_cli.pipeline.modeling import defined_flags
 
 
@@ -92,10 +92,79 @@ def enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, snap: f
     return Box(center, float(yaw), size, visible, bool(defined_flags(visible)))
 
 
-def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float, min_extent: float) -> Box:
-    """The four cases of DESIGN.md 1.3 by the Defined flags of detection i and map object j."""
+def _in_frame_of(whole: Box, points_xyz: np.ndarray) -> np.ndarray:
+    """points_xyz (N, 3) in the frame of ``whole`` (origin its centre, x along its yaw)."""
+    c, s = np.cos(whole.yaw), np.sin(whole.yaw)
+    R_world_box = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return (points_xyz - whole.center) @ R_world_box
+
+
+def reach_beyond(partial: Box, whole: Box) -> float:
+    """How far (metres) the footprint of ``partial`` reaches outside the footprint of ``whole``:
+    the largest excess of its footprint corners over ``whole``'s half sizes, along ``whole``'s own
+    axes (0 when it lies inside)."""
+    local = _in_frame_of(whole, box_corners(partial.center, partial.yaw, partial.size))
+    excess = np.abs(local[:, :2]) - whole.size[:2] / 2
+    return float(max(excess.max(), 0.0))
+
+
+def extended_box(whole: Box, partial: Box, erosion: float) -> Box:
+    """``whole`` grown along its own axes to cover ``partial`` (less ``erosion`` per grown side),
+    Defined. The Defined box keeps its orientation: a partial box's yaw is the least measured
+    thing about it, and the enclosing rectangle of two boxes turned against each other is a
+    diagonal one larger than either."""
+    half = whole.size / 2
+    local = _in_frame_of(whole, box_corners(partial.center, partial.yaw, partial.size))
+    lo = np.minimum(-half, np.minimum(local.min(axis=0) + erosion, -half))
+    hi = np.maximum(half, np.maximum(local.max(axis=0) - erosion, half))
+    c, s = np.cos(whole.yaw), np.sin(whole.yaw)
+    shift = (lo + hi) / 2
+    center = whole.center + np.array([c * shift[0] - s * shift[1], s * shift[0] + c * shift[1], shift[2]])
+    return Box(center, whole.yaw, hi - lo, whole.visible.copy(), True)
+
+
+def shares_inside(box: Box, centers: np.ndarray, yaws: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """The share (K,) of the volume of each of K boxes (centers (K, 3), yaws (K,), sizes (K, 3))
+    that lies inside ``box``."""
+    k = len(centers)
+    if k == 0:
+        return np.zeros(0)
+    origin = box.center[:2]
+    footprint = box_corners(box.center, box.yaw, box.size)[:4, :2] - origin
+    others = box_corners(centers, yaws, sizes)[:, :4, :2] - origin
+    area = convex_intersection_area(np.broadcast_to(footprint, (k, 4, 2)), others)
+    lo = np.maximum(box.center[2] - box.size[2] / 2, centers[:, 2] - sizes[:, 2] / 2)
+    hi = np.minimum(box.center[2] + box.size[2] / 2, centers[:, 2] + sizes[:, 2] / 2)
+    return area * np.clip(hi - lo, 0.0, None) / np.maximum(np.prod(sizes, axis=1), 1e-12)
+
+
+def takes_in(grown: Box, before: Box, centers: np.ndarray, yaws: np.ndarray, sizes: np.ndarray,
+             share: float = 0.5) -> bool:
+    """True when ``grown`` holds at least ``share`` of the volume of one of the K other boxes that
+    ``before`` held less of: a box that grew over another object. A partial mask that bled into
+    the chair beside a table says nothing of the table's extent, and the table must not take the
+    chair's place (issue 9: geometry is never taken from a different object)."""
+    now = shares_inside(grown, centers, yaws, sizes)
+    return bool(np.any((now >= share) & (shares_inside(before, centers, yaws, sizes) < share)))
+
+
+def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float, min_extent: float,
+                  outgrow: float | None = None) -> Box:
+    """The four cases of DESIGN.md 1.3 by the Defined flags of detection i and map object j.
+
+    ``outgrow`` (metres, None = the paper): in the two mixed cases, a partial box reaching further
+    than this outside the Defined one proves the Defined box too small, and it grows along its own
+    axes to cover the partial one (:func:`extended_box`). A partial view measures a lower bound of the object's
+    extent; a Defined box is Defined when its vertices were visible, which a mask covering only a
+    part of the object (a split mask, a couch half hidden by a table in front) also makes true: the
+    paper's rule then freezes a 0.7 m piece of a 2.2 m couch against every later view.
+    """
     if det.defined and obj.defined:
         return average_boxes(det, obj, w_det, w_obj)
+    if det.defined != obj.defined and outgrow is not None:
+        partial, whole = (obj, det) if det.defined else (det, obj)
+        if reach_beyond(partial, whole) > outgrow:
+            return extended_box(whole, partial, erosion)
     if obj.defined:  # i partial, j Defined: a partial view cannot improve a complete box
         return Box(obj.center.copy(), obj.yaw, obj.size.copy(), obj.visible.copy(), True)
     if det.defined:  # i Defined, j partial: the complete view replaces the partial estimate
@@ -104,13 +173,13 @@ def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float
 
 
 def merge_objects(keep: Box, drop: Box, s_keep: np.ndarray, s_drop: np.ndarray, w_keep: float, w_drop: float,
-                  erosion: float, min_extent: float) -> tuple[Box, np.ndarray]:
+                  erosion: float, min_extent: float, outgrow: float | None = None) -> tuple[Box, np.ndarray]:
     """Instance de-duplication: (box, class vector) of two map objects that are one.
 
     The box follows the four cases of :func:`integrate_box` with ``drop`` as the observation; the
     class vectors follow eq. 3 generalised to two map objects: the observation-weighted mean.
     """
-    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent)
+    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent, outgrow)
     return box, merged_scores(s_keep, s_drop, w_keep, w_drop)
 
 

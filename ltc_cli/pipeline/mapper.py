@@ -20,7 +20,9 @@ from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, half_diagonals,
     match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, within_reach,
 )
-from ltc_cli.pipeline.integration import fuse_scores, integrate_box, label_weight, moved_elsewhere, stale_weight
+from ltc_cli.pipeline.integration import (
+    fuse_scores, integrate_box, label_weight, moved_elsewhere, stale_weight, takes_in,
+)
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, count_absence_views, found_again, in_view, new_view, non_detection_vectors,
@@ -62,6 +64,8 @@ class Mapper(InstanceMerging):
         self.flags = ClassFlags.from_settings(smap.classes, config)
         shares = config["association"].get("partial_adjoin_share") or {}
         self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
+        outgrow = config["integration"]["partial_outgrow"] or {}
+        self._outgrow = [outgrow.get(c) for c in smap.classes] + [None]
         self.rates = DetectionRates(smap, config["maintenance"])
         self._view = np.zeros(6)  # the camera's view of the frame being mapped (camera_view)
         v_empty = config["maintenance"]["v_other_seen_empty"]
@@ -330,7 +334,13 @@ class Mapper(InstanceMerging):
             new = det_box  # the object was moved: its old box is where it was, the detection where it is
         else:
             w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
+            top = int(top_class(t.scores[row]))
+            outgrow = self._outgrow[top] if int(top_class(s_det)) == top else None
             new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+            if outgrow is not None:
+                grown = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
+                                      outgrow)
+                new = new if self._takes_in_others((row,), top, new, grown) else grown
         t.set_box(row, new)
         w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
                          int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
@@ -340,6 +350,18 @@ class Mapper(InstanceMerging):
         self._count_view(row)
         self.index.insert(row, new.center, new.size)
         self._log(frame_index, frame_key, "updated", row + 1)
+
+    def _takes_in_others(self, rows, top: int, before: Box, grown: Box) -> bool:
+        """True when ``grown`` (``partial_outgrow``) took in an active object of another class than
+        ``top`` that ``before`` (the paper's box) did not (:func:`takes_in`); ``rows`` are the
+        objects being shaped."""
+        if np.array_equal(grown.size, before.size) and np.array_equal(grown.center, before.center):
+            return False
+        t, r = self.map.objects, float(np.hypot(*grown.size[:2])) / 2
+        near = self.index.query(grown.center[0] - r, grown.center[0] + r, grown.center[1] - r, grown.center[1] + r)
+        near = near[(t.status[near] == ACTIVE) & ~np.isin(near, rows)]
+        near = near[top_class(t.scores[near]) != top]
+        return takes_in(grown, before, t.center[near], t.yaw[near], t.size[near])
 
     def _foreign(self, s_a, s_b, box_a: Box, box_b: Box) -> bool:
         """True when box a must not reshape box b: another top class and a dissimilar volume."""
