@@ -77,7 +77,7 @@ class IntegrationSettings(TypedDict):
     relabel_weight: str
     stale_box_weight: Optional[float]
     stale_partial_moves: bool
-    partial_outgrow: dict[str, float] | None
+    partial_outgrow: dict[str, float | None] | None
 
 
 class MaintenanceSettings(TypedDict):

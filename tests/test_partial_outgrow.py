@@ -155,3 +155,16 @@ def test_default_and_paper():
                                                             "refrigerator": 0.2}
     paper = yaml.safe_load((Path(__file__).resolve().parent.parent / "docs" / "paper.yaml").read_text())
     assert paper["integration"]["partial_outgrow"] is None
+
+
+def test_one_class_can_be_turned_off():
+    """The user's {couch: null} merges into the defaults: the couch keeps the paper's rule, the
+    other classes keep theirs."""
+    from ltc_cli.config import load_config
+
+    cfg = load_config(None, ["integration.partial_outgrow={couch: null}"])
+    assert cfg["integration"]["partial_outgrow"]["couch"] is None
+    assert cfg["integration"]["partial_outgrow"]["bed"] == 0.2
+    mapper, row = mapper_with_couch(cfg)
+    mapper._integrate(row, box(-1.2, 0.3, False), np.array([0.8, 0.1, 0.0, 0.1]), 0, "0")
+    assert mapper.map.objects.size[row].max() == pytest.approx(0.9)
