@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.pipeline.association import vertex_distance
-from ltc_cli.geometry.boxes import SHIFTS, Box, align_yaw, box_corners, min_area_rect, wrap_yaw
+from ltc_cli.geometry.boxes import SHIFTS, Box, align_yaw, box_corners, min_area_rect, rot_z, wrap_yaw
 from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
 from ltc_cli.pipeline.modeling import defined_flags
 
@@ -94,9 +94,7 @@ def enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, snap: f
 
 def _in_frame_of(whole: Box, points_xyz: np.ndarray) -> np.ndarray:
     """points_xyz (N, 3) in the frame of ``whole`` (origin its centre, x along its yaw)."""
-    c, s = np.cos(whole.yaw), np.sin(whole.yaw)
-    R_world_box = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return (points_xyz - whole.center) @ R_world_box
+    return (points_xyz - whole.center) @ rot_z(whole.yaw)  # R_world_box^T applied to each row
 
 
 def reach_beyond(partial: Box, whole: Box) -> float:
@@ -115,11 +113,9 @@ def extended_box(whole: Box, partial: Box, erosion: float) -> Box:
     diagonal one larger than either."""
     half = whole.size / 2
     local = _in_frame_of(whole, box_corners(partial.center, partial.yaw, partial.size))
-    lo = np.minimum(-half, np.minimum(local.min(axis=0) + erosion, -half))
-    hi = np.maximum(half, np.maximum(local.max(axis=0) - erosion, half))
-    c, s = np.cos(whole.yaw), np.sin(whole.yaw)
-    shift = (lo + hi) / 2
-    center = whole.center + np.array([c * shift[0] - s * shift[1], s * shift[0] + c * shift[1], shift[2]])
+    lo = np.minimum(-half, local.min(axis=0) + erosion)
+    hi = np.maximum(half, local.max(axis=0) - erosion)
+    center = whole.center + rot_z(whole.yaw) @ ((lo + hi) / 2)
     return Box(center, whole.yaw, hi - lo, whole.visible.copy(), True)
 
 

@@ -334,13 +334,9 @@ class Mapper(InstanceMerging):
             new = det_box  # the object was moved: its old box is where it was, the detection where it is
         else:
             w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
-            top = int(top_class(t.scores[row]))
-            outgrow = self._outgrow[top] if int(top_class(s_det)) == top else None
             new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
-            if outgrow is not None:
-                grown = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
-                                      outgrow)
-                new = new if self._takes_in_others((row,), top, new, grown) else grown
+            if int(top_class(s_det)) == int(top_class(t.scores[row])):
+                new = self._outgrown(det_box, obj, 1.0, w_obj, int(top_class(s_det)), (row,), new)
         t.set_box(row, new)
         w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
                          int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
@@ -351,17 +347,23 @@ class Mapper(InstanceMerging):
         self.index.insert(row, new.center, new.size)
         self._log(frame_index, frame_key, "updated", row + 1)
 
-    def _takes_in_others(self, rows, top: int, before: Box, grown: Box) -> bool:
-        """True when ``grown`` (``partial_outgrow``) took in an active object of another class than
-        ``top`` that ``before`` (the paper's box) did not (:func:`takes_in`); ``rows`` are the
+    def _outgrown(self, obs: Box, obj: Box, w_obs: float, w_obj: float, top: int, rows, plain: Box) -> Box:
+        """``plain`` (the paper's box of ``obs`` integrated into ``obj``, both of class ``top``), or
+        the box ``partial_outgrow`` grows from a partial one reaching beyond a Defined one, unless
+        that box takes in an active object of another class (:func:`takes_in`); ``rows`` are the
         objects being shaped."""
-        if np.array_equal(grown.size, before.size) and np.array_equal(grown.center, before.center):
-            return False
+        outgrow = self._outgrow[top]
+        if outgrow is None or obs.defined == obj.defined:
+            return plain
+        grown = integrate_box(obs, obj, w_obs, w_obj, self.cfg["integration"]["erosion"],
+                              self.cfg["modeling"]["min_extent"], outgrow)
+        if np.array_equal(grown.size, plain.size) and np.array_equal(grown.center, plain.center):
+            return plain
         t, r = self.map.objects, float(np.hypot(*grown.size[:2])) / 2
         near = self.index.query(grown.center[0] - r, grown.center[0] + r, grown.center[1] - r, grown.center[1] + r)
         near = near[(t.status[near] == ACTIVE) & ~np.isin(near, rows)]
         near = near[top_class(t.scores[near]) != top]
-        return takes_in(grown, before, t.center[near], t.yaw[near], t.size[near])
+        return plain if takes_in(grown, plain, t.center[near], t.yaw[near], t.size[near]) else grown
 
     def _foreign(self, s_a, s_b, box_a: Box, box_b: Box) -> bool:
         """True when box a must not reshape box b: another top class and a dissimilar volume."""

@@ -13,7 +13,7 @@ from ltc_cli.map.model import ACTIVE, MERGED, top_class
 from ltc_cli.pipeline.association import match_reach
 from ltc_cli.pipeline.deduplication import greedy_merges, label_survivor, merge_pairs, stand_pairs
 from ltc_cli.pipeline.integration import (
-    confirmed_side, integrate_box, label_weight, merge_objects, merged_box, merged_scores, stale_side,
+    confirmed_side, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
 from ltc_cli.pipeline.maintenance import tentative
 
@@ -72,14 +72,11 @@ class InstanceMerging:
         t, i_cfg = self.map.objects, self.cfg["integration"]
         b_old, b_new = t.box(older), t.box(newer)
         w_old, w_new = self._merge_weights(older, newer)
-        top = int(top_class(t.scores[older]))
-        outgrow = self._outgrow[top] if int(top_class(t.scores[newer])) == top else None
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
-        if outgrow is not None:
-            grown = integrate_box(b_new, b_old, w_new, w_old, i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
-                                  outgrow)
-            box = box if self._takes_in_others((older, newer), top, box, grown) else grown
+        top = int(top_class(t.scores[older]))
+        if int(top_class(t.scores[newer])) == top:
+            box = self._outgrown(b_new, b_old, w_new, w_old, top, (older, newer), box)
         # A whole box: the confirmed one's against a tentative label (tentative_reshapes false),
         # else the one detected now (merge_current_box); the size rule for foreign boxes holds
         # only when neither chose.
