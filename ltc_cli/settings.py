@@ -78,6 +78,7 @@ class IntegrationSettings(TypedDict):
     stale_box_weight: Optional[float]
     stale_partial_moves: bool
     partial_outgrow: dict[str, float | None] | None
+    partial_outgrow_turn: Optional[float]
 
 
 class MaintenanceSettings(TypedDict):

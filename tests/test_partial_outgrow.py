@@ -11,7 +11,9 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Box, box_corners
 from ltc_cli.map.model import ACTIVE, SemanticMap
-from ltc_cli.pipeline.integration import integrate_box, merge_objects, reach_beyond, shares_inside, takes_in
+from ltc_cli.pipeline.integration import (
+    integrate_box, merge_objects, reach_beyond, shares_inside, square_turn, takes_in,
+)
 from ltc_cli.pipeline.mapper import Mapper
 
 CLASSES = ["couch", "bed", "chair"]  # then other
@@ -75,6 +77,34 @@ def test_the_grown_box_keeps_the_defined_orientation():
     assert new.yaw == pytest.approx(np.pi / 2)
     np.testing.assert_allclose(extent(new), [-0.45, -0.35, 0.0, 0.45, 0.59, 0.8], atol=1e-6)
     np.testing.assert_allclose(new.size, [0.94, 0.9, 0.8], atol=1e-6)
+
+
+@pytest.mark.parametrize("a_deg, b_deg, turn_deg", [
+    (0, 0, 0), (10, 0, 10), (0, 37, 37), (80, 0, 10), (90, 0, 0), (-89, 0, 1), (45, 0, 45), (60, -30, 0),
+    (-80, 85, 15),  # -80 against 85: 165 degrees apart, 15 from the quarter turn at 180
+])
+def test_square_turn_by_hand(a_deg, b_deg, turn_deg):
+    assert np.degrees(square_turn(np.radians(a_deg), np.radians(b_deg))) == pytest.approx(turn_deg, abs=1e-9)
+
+
+@pytest.mark.parametrize("turn_deg, max_turn_deg, grows", [
+    (10, 15, True), (20, 15, False), (37, 15, False), (80, 15, True),  # 80 is 10 modulo 90
+    (37, None, True),  # no limit: the seventeenth round's rule
+])
+def test_a_partial_box_turned_too_far_does_not_grow_the_defined_box(turn_deg, max_turn_deg, grows):
+    """A 0.7 x 0.9 m Defined couch piece at the origin and a 1.5 x 0.5 m partial box centred at
+    x -0.6, turned by ``turn_deg``: it reaches at least 0.45 m past x -0.35 at every turn tried
+    (its far end's middle alone lies at x -0.6 - 0.75 cos t), so only the turn decides."""
+    whole = box(-0.35, 0.35, True)
+    t = np.radians(turn_deg)
+    partial = Box(np.array([-0.6, 0.0, 0.4]), float(t), np.array([1.5, 0.5, 0.8]), np.ones(8, bool), False)
+    assert reach_beyond(partial, whole) > 0.2
+    limit = None if max_turn_deg is None else np.radians(max_turn_deg)
+    new = integrate_box(partial, whole, 1, 5, 0.01, 0.05, 0.2, limit)
+    assert bool(extent(new)[0] < -0.36) is grows
+    assert new.yaw == whole.yaw
+    if not grows:
+        np.testing.assert_allclose(extent(new), extent(whole))
 
 
 def test_a_merge_of_two_objects_grows_the_same_way():
@@ -155,6 +185,8 @@ def test_default_and_paper():
                                                             "refrigerator": 0.2}
     paper = yaml.safe_load((Path(__file__).resolve().parent.parent / "docs" / "paper.yaml").read_text())
     assert paper["integration"]["partial_outgrow"] is None
+    assert defaults()["integration"]["partial_outgrow_turn"] == 15
+    assert paper["integration"]["partial_outgrow_turn"] is None
 
 
 def test_one_class_can_be_turned_off():
@@ -168,3 +200,17 @@ def test_one_class_can_be_turned_off():
     mapper, row = mapper_with_couch(cfg)
     mapper._integrate(row, box(-1.2, 0.3, False), np.array([0.8, 0.1, 0.0, 0.1]), 0, "0")
     assert mapper.map.objects.size[row].max() == pytest.approx(0.9)
+
+
+@pytest.mark.parametrize("overrides, grows", [([], False), (["integration.partial_outgrow_turn=null"], True),
+                                              (["integration.partial_outgrow_turn=40"], True)])
+def test_the_mapper_applies_the_turn_limit_from_config(overrides, grows):
+    """A couch view over x -1.35 - 0.15 turned 30 degrees: the default 15-degree limit keeps the
+    Defined box; with no limit, or a 40-degree one, it grows past x -0.35."""
+    from ltc_cli.config import load_config
+
+    mapper, row = mapper_with_couch(load_config(None, overrides))
+    partial = Box(np.array([-0.6, 0.0, 0.4]), float(np.radians(30)), np.array([1.5, 0.5, 0.8]), np.ones(8, bool), False)
+    mapper._integrate(row, partial, np.array([0.8, 0.1, 0.0, 0.1]), 0, "0")
+    t = mapper.map.objects
+    assert bool(extent(t.box(row))[0] < -0.36) is grows

@@ -106,6 +106,13 @@ def reach_beyond(partial: Box, whole: Box) -> float:
     return float(max(excess.max(), 0.0))
 
 
+def square_turn(a_yaw: float, b_yaw: float) -> float:
+    """The angle (radians, in [0, pi/4]) between two Z-oriented boxes' axes, modulo a quarter
+    turn: a box's x and y axes are interchangeable, so 90 degrees apart is no turn at all."""
+    d = (a_yaw - b_yaw) % (np.pi / 2)
+    return float(min(d, np.pi / 2 - d))
+
+
 def extended_box(whole: Box, partial: Box, erosion: float) -> Box:
     """``whole`` grown along its own axes to cover ``partial`` (less ``erosion`` per grown side),
     Defined. The Defined box keeps its orientation: a partial box's yaw is the least measured
@@ -145,7 +152,7 @@ def takes_in(grown: Box, before: Box, centers: np.ndarray, yaws: np.ndarray, siz
 
 
 def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float, min_extent: float,
-                  outgrow: float | None = None) -> Box:
+                  outgrow: float | None = None, max_turn: float | None = None) -> Box:
     """The four cases of DESIGN.md 1.3 by the Defined flags of detection i and map object j.
 
     ``outgrow`` (metres, None = the paper): in the two mixed cases, a partial box reaching further
@@ -154,12 +161,16 @@ def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float
     extent; a Defined box is Defined when its vertices were visible, which a mask covering only a
     part of the object (a split mask, a couch half hidden by a table in front) also makes true: the
     paper's rule then freezes a 0.7 m piece of a 2.2 m couch against every later view.
+    ``max_turn`` (radians, None = any): a partial box turned further than this against the Defined
+    one (:func:`square_turn`) is not trusted to measure it: a piece of a couch seen at an angle fits
+    a box turned 37 degrees whose corners reach 0.35 m past the couch's back.
     """
     if det.defined and obj.defined:
         return average_boxes(det, obj, w_det, w_obj)
     if det.defined != obj.defined and outgrow is not None:
         partial, whole = (obj, det) if det.defined else (det, obj)
-        if reach_beyond(partial, whole) > outgrow:
+        if (reach_beyond(partial, whole) > outgrow
+                and (max_turn is None or square_turn(partial.yaw, whole.yaw) <= max_turn)):
             return extended_box(whole, partial, erosion)
     if obj.defined:  # i partial, j Defined: a partial view cannot improve a complete box
         return Box(obj.center.copy(), obj.yaw, obj.size.copy(), obj.visible.copy(), True)
@@ -169,13 +180,14 @@ def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float
 
 
 def merge_objects(keep: Box, drop: Box, s_keep: np.ndarray, s_drop: np.ndarray, w_keep: float, w_drop: float,
-                  erosion: float, min_extent: float, outgrow: float | None = None) -> tuple[Box, np.ndarray]:
+                  erosion: float, min_extent: float, outgrow: float | None = None,
+                  max_turn: float | None = None) -> tuple[Box, np.ndarray]:
     """Instance de-duplication: (box, class vector) of two map objects that are one.
 
     The box follows the four cases of :func:`integrate_box` with ``drop`` as the observation; the
     class vectors follow eq. 3 generalised to two map objects: the observation-weighted mean.
     """
-    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent, outgrow)
+    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent, outgrow, max_turn)
     return box, merged_scores(s_keep, s_drop, w_keep, w_drop)
 
 

@@ -66,6 +66,8 @@ class Mapper(InstanceMerging):
         self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
         outgrow = config["integration"]["partial_outgrow"] or {}
         self._outgrow = [outgrow.get(c) for c in smap.classes] + [None]
+        turn = config["integration"]["partial_outgrow_turn"]
+        self._outgrow_turn = None if turn is None else np.radians(turn)
         self.rates = DetectionRates(smap, config["maintenance"])
         self._view = np.zeros(6)  # the camera's view of the frame being mapped (camera_view)
         v_empty = config["maintenance"]["v_other_seen_empty"]
@@ -356,7 +358,7 @@ class Mapper(InstanceMerging):
         if outgrow is None or obs.defined == obj.defined:
             return plain
         grown = integrate_box(obs, obj, w_obs, w_obj, self.cfg["integration"]["erosion"],
-                              self.cfg["modeling"]["min_extent"], outgrow)
+                              self.cfg["modeling"]["min_extent"], outgrow, self._outgrow_turn)
         if np.array_equal(grown.size, plain.size) and np.array_equal(grown.center, plain.center):
             return plain
         t, r = self.map.objects, float(np.hypot(*grown.size[:2])) / 2
