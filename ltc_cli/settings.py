@@ -49,6 +49,7 @@ class AssociationSettings(TypedDict):
     threshold_same_class: float
     threshold_other_class: float
     other_class_scale: Optional[float]
+    other_class_height_ratio: Optional[float]
     min_visible_pairs: int
     containment: Optional[float]
     containment_other_class: Optional[float]
@@ -58,6 +59,7 @@ class AssociationSettings(TypedDict):
     merge_other_class_iou: Optional[float]
     merge_partial_defined_gap: Optional[float]
     merge_partial_defined_volume: float
+    merge_partial_defined_now: dict[str, float | None] | None
     stand_gap: Optional[float]
     merge_min_overlap: Optional[float]
     established_apart: bool

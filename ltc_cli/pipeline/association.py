@@ -96,6 +96,21 @@ def other_class_caps(det_size: np.ndarray, cand_size: np.ndarray, scale: float |
     return scale * np.maximum(half_diagonals(np.atleast_2d(det_size))[0], half_diagonals(cand_size))
 
 
+def unlike_heights(h_a: np.ndarray, defined_a: np.ndarray, h_b: np.ndarray, defined_b: np.ndarray,
+                   ratio: float | None) -> np.ndarray:
+    """(M,) bool: pairs of boxes (heights and Defined flags broadcast to (M,)) whose heights differ
+    by more than ``ratio`` (smaller / larger; None: never), the shorter one Defined. A Defined
+    height is measured and a partial one is a lower bound, so a partial box taller than the ratio
+    allows is taller still: the two are two things, not one object under two labels. A bottle put
+    where a book lay (0.30 m seen of it against 0.07 m) is no book, and its "bottle" detections
+    kept the book's box alive as a ghost."""
+    h_a, h_b = np.asarray(h_a, float), np.asarray(h_b, float)
+    if ratio is None:
+        return np.zeros(np.broadcast(h_a, h_b).shape, dtype=bool)
+    shorter_defined = np.where(h_a <= h_b, np.asarray(defined_a, bool), np.asarray(defined_b, bool))
+    return shorter_defined & (np.minimum(h_a, h_b) < ratio * np.maximum(h_a, h_b))
+
+
 def nearest_under_threshold(dist: np.ndarray, thr: np.ndarray) -> int:
     """Index of the closest candidate within its threshold, or -1.
 

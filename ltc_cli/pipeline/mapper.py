@@ -18,7 +18,8 @@ from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
     adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, half_diagonals,
-    match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, within_reach,
+    match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, unlike_heights,
+    within_reach,
 )
 from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, moved_elsewhere, stale_weight, takes_in,
@@ -64,6 +65,8 @@ class Mapper(InstanceMerging):
         self.flags = ClassFlags.from_settings(smap.classes, config)
         shares = config["association"].get("partial_adjoin_share") or {}
         self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
+        now = config["association"]["merge_partial_defined_now"] or {}
+        self._now_volume = np.array([np.nan if now.get(c) is None else now[c] for c in smap.classes] + [np.nan])
         outgrow = config["integration"]["partial_outgrow"] or {}
         self._outgrow = [outgrow.get(c) for c in smap.classes] + [None]
         turn = config["integration"]["partial_outgrow_turn"]
@@ -203,14 +206,16 @@ class Mapper(InstanceMerging):
         dist = self.metric.distance(det, t.boxes(rows))
         thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                              other_class_caps(det.size[0], t.size[rows], a_cfg["other_class_scale"]))
-        best = nearest_under_threshold(dist, thr)
+        unlike = (cand_classes != det_class) & unlike_heights(det.size[0, 2], det_defined, t.size[rows, 2],
+                                                              t.defined[rows], a_cfg["other_class_height_ratio"])
+        best = nearest_under_threshold(dist, np.where(unlike, -1.0, thr))
         if best >= 0:
             return int(rows[best]), False
         if not a_cfg["containment"]:
             return -1, False
         cand = t.boxes(rows)
         comparable = similar_volume(np.prod(det.size, axis=1), np.prod(cand.size, axis=1),
-                                    a_cfg["other_class_volume_ratio"])
+                                    a_cfg["other_class_volume_ratio"]) & ~unlike
         best = containing_candidate(containment(det, cand), cand_classes == det_class, a_cfg["containment"],
                                     a_cfg["containment_other_class"], comparable)
         if best < 0 and not det_defined:
