@@ -59,7 +59,6 @@ class AssociationSettings(TypedDict):
     merge_other_class_iou: Optional[float]
     merge_partial_defined_gap: Optional[float]
     merge_partial_defined_volume: float
-    merge_partial_defined_now: dict[str, float | None] | None
     stand_gap: Optional[float]
     merge_min_overlap: Optional[float]
     established_apart: bool

@@ -67,28 +67,3 @@ def test_merge_pairs_joins_the_partial_chair_only_with_the_setting(gap):
     # Without the rule nothing pairs 0 and 1: eq. 2 sees 0.9 m between centres, containment 0.08.
     assert ((0, 1) in pairs) == (gap is not None)
     assert (0, 5) not in pairs and (0, 3) not in pairs and (0, 4) not in pairs
-
-
-def test_classes_that_do_not_stand_side_by_side_merge_within_the_session():
-    """All in one session (``same``: 1 with 0 and 5): nothing pairs, as above. With now_volume 1.0
-    for 1's class, 1 (2.24 times 0's and 5's volume) touches 0 (gap 0) and pairs with it; 6 (0.8
-    times, 0.05 m from 0) is too small; a ratio of 2.3 (over 2.24) pairs nothing; NaN is off."""
-    boxes, same = scene(), np.array([0, 0, 1, 1, 1, 0, 0])
-    one = np.full(7, 1.0)
-    assert [(a, b) for _, a, b in partial_defined_pairs(boxes, TOP, DEFINED, same, 0.0, 2.0, one)] == [(0, 1)]
-    assert sorted((a, b) for _, a, b in partial_defined_pairs(boxes, TOP, DEFINED, same, 0.1, 2.0, one)) == \
-        [(0, 1), (1, 5)]
-    assert partial_defined_pairs(boxes, TOP, DEFINED, same, 0.1, 2.0, np.full(7, 2.3)) == []
-    assert partial_defined_pairs(boxes, TOP, DEFINED, same, 0.1, 2.0, np.full(7, np.nan)) == []
-
-
-def test_the_defaults_name_tables_and_beds_and_the_mapper_maps_them_by_class():
-    from ltc_cli.map.model import SemanticMap
-    from ltc_cli.pipeline.mapper import Mapper
-
-    cfg = defaults()
-    assert cfg["association"]["merge_partial_defined_now"] == {"dining table": 1.0, "bed": 1.0}
-    smap = SemanticMap.new(["chair", "bed", "dining table"])
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=0)
-    np.testing.assert_array_equal(mapper._now_volume, [np.nan, 1.0, 1.0, np.nan])

@@ -145,8 +145,7 @@ def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_vo
 
 
 def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, first_session: np.ndarray,
-                          max_gap: float | None, min_volume: float = 1.0,
-                          now_volume: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                          max_gap: float | None, min_volume: float = 1.0) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view, top classes (M,), Defined flags (M,) bool, sessions of
     their first detection (M,)) in which a partial object is the later view of a Defined object of
     its class: first detected in a later session, at least ``min_volume`` times its volume, and with
@@ -159,9 +158,7 @@ def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, fi
     reshapes a Defined one (DESIGN.md 1.3), so the merge costs the complete box nothing. Within one
     session the same picture is as often a second object not yet seen whole (chairs side by side
     at a table: the simulator lost a chair so), hence the later session; a smaller partial box is
-    for containment to judge, hence the volume. ``now_volume`` (M,) (NaN: not so): for classes that
-    do not stand side by side (tables, beds), a partial box of at least this many times the Defined
-    one's volume merges in any session: two pieces of one table, not two tables.
+    for containment to judge, hence the volume.
     """
     m = len(boxes)
     if max_gap is None or m < 2:
@@ -169,10 +166,8 @@ def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, fi
     vol = np.prod(boxes.size, axis=1)
     out = []
     for a in np.flatnonzero(~defined):
-        mates = (first_session < first_session[a]) & (vol[a] >= min_volume * vol)
-        if now_volume is not None and not np.isnan(now_volume[a]):
-            mates |= vol[a] >= now_volume[a] * vol
-        rest = np.flatnonzero(defined & (top == top[a]) & mates)
+        rest = np.flatnonzero(defined & (top == top[a]) & (first_session < first_session[a])
+                              & (vol[a] >= min_volume * vol))
         if rest.size == 0:
             continue
         gaps = footprint_gaps(boxes.take(slice(int(a), int(a) + 1)), boxes.take(rest))
@@ -221,7 +216,7 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
 
 def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: float | None = None,
                 defined: np.ndarray | None = None, first_session: np.ndarray | None = None,
-                session: int | None = None, now_volume: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                session: int | None = None) -> list[tuple[float, int, int]]:
     """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
     association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
     inside the other by ``merge_containment``, default ``containment``), then one object under two
@@ -241,7 +236,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],
-                                  a_cfg["merge_partial_defined_volume"], now_volume) \
+                                  a_cfg["merge_partial_defined_volume"]) \
         if overlap and defined is not None and first_session is not None else []
     out = pairs + [(1e6 + k, a, b) for k, a, b in two_labels] + [(2e6 + g, a, b) for g, a, b in later]
     if defined is None or a_cfg["other_class_height_ratio"] is None:

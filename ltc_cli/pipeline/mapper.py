@@ -65,8 +65,6 @@ class Mapper(InstanceMerging):
         self.flags = ClassFlags.from_settings(smap.classes, config)
         shares = config["association"].get("partial_adjoin_share") or {}
         self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
-        now = config["association"]["merge_partial_defined_now"] or {}
-        self._now_volume = np.array([np.nan if now.get(c) is None else now[c] for c in smap.classes] + [np.nan])
         outgrow = config["integration"]["partial_outgrow"] or {}
         self._outgrow = [outgrow.get(c) for c in smap.classes] + [None]
         turn = config["integration"]["partial_outgrow_turn"]

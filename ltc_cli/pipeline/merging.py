@@ -30,8 +30,7 @@ class InstanceMerging:
             return 0
         a_cfg = self.cfg["association"]
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
-                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session,
-                            self._now_volume[top_class(t.scores[rows])])
+                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
