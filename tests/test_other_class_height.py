@@ -1,6 +1,7 @@
-"""association.other_class_height_ratio (issue 9, eighteenth round): two Defined boxes of different
-classes whose measured heights differ by more than the ratio are two things, not one object under
-two labels; they neither match nor merge. Values worked out by hand."""
+"""association.other_class_height_ratio (issue 9, eighteenth round): of two boxes of different
+classes, a taller one reaching above the bottom of the shorter, Defined one by more than its height
+/ ratio is another thing, not the same object under two labels; they neither match nor merge.
+Values worked out by hand."""
 
 import numpy as np
 import pytest
@@ -16,19 +17,20 @@ from ltc_cli.pipeline.mapper import Mapper
 CLASSES = ["book", "bottle", "dining table"]  # then other
 
 
-def test_unlike_heights_by_hand():
-    # Against a Defined 0.07 m: 0.27 (0.26) and 0.30 (0.23) are unlike, the partial 0.27 too (a
-    # lower bound of a height already too tall); 0.14 is exactly half: alike. Against 0.2 m: 0.27
-    # (0.74), 0.30 (0.67), 0.14 (0.7) are all alike.
-    h = np.array([0.27, 0.3, 0.14, 0.27])
-    d = np.array([True, True, True, False])
-    np.testing.assert_array_equal(unlike_heights(0.07, True, h, d, 0.5), [True, True, False, True])
-    np.testing.assert_array_equal(unlike_heights(0.2, True, h, d, 0.5), [False] * 4)
-    # A partial 0.07 m box may be a piece of something taller: never judged by its height.
-    np.testing.assert_array_equal(unlike_heights(0.07, False, h, d, 0.5), [False] * 4)
-    np.testing.assert_array_equal(unlike_heights(h, d, 0.07, False, 0.5), [False] * 4)  # either order
-    np.testing.assert_array_equal(unlike_heights(h, d, 0.07, True, 0.5), [True, True, False, True])
-    np.testing.assert_array_equal(unlike_heights(0.07, True, h, d, None), [False] * 4)  # the paper
+@pytest.mark.parametrize("short, tall, unlike", [
+    # (centre z, height, Defined) of the shorter box, then of the taller one.
+    ((0.535, 0.07, True), (0.635, 0.27, True), True),    # a bottle on the book's surface: 0.27 above its bottom, > 0.14
+    ((0.535, 0.07, True), (0.635, 0.27, False), True),   # the same bottle seen partly: a lower bound, already too tall
+    ((0.535, 0.07, False), (0.635, 0.27, True), False),  # a partial book may be part of something taller
+    ((0.86, 0.30, True), (0.525, 1.05, False), False),   # a sink (0.71-1.01) called toilet with its cabinet: 0.34 < 0.6
+    ((0.74, 0.49, True), (0.47, 1.02, True), False),     # a plant's leaves called bottle: 0.485 < 0.98
+    ((0.05, 0.10, True), (0.10, 0.20, True), False),     # exactly twice its height above its bottom: alike
+    ((0.05, 0.10, True), (0.105, 0.21, True), True),     # 0.21: unlike
+])
+def test_unlike_heights_by_hand(short, tall, unlike):
+    assert bool(unlike_heights(*short, *tall, 0.5)) is unlike
+    assert bool(unlike_heights(*tall, *short, 0.5)) is unlike  # either order
+    assert not bool(unlike_heights(*short, *tall, None))  # the paper
 
 
 def mapper_with(obj_size, obj_scores, cfg):

@@ -242,4 +242,5 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     if defined is None or a_cfg["other_class_height_ratio"] is None:
         return out
     return [(d, a, b) for d, a, b in out if top[a] == top[b] or not unlike_heights(
-        boxes.size[a, 2], defined[a], boxes.size[b, 2], defined[b], a_cfg["other_class_height_ratio"])]
+        boxes.center[a, 2], boxes.size[a, 2], defined[a], boxes.center[b, 2], boxes.size[b, 2], defined[b],
+        a_cfg["other_class_height_ratio"])]
