@@ -109,6 +109,7 @@ class MaintenanceSettings(TypedDict):
     absent_after_views: Optional[int]
     absent_quiet_sessions: Optional[int]
     absent_quiet_views: Optional[int]
+    fixture_classes: Optional[list[str]]
     absent_through_views: Optional[int]
     absent_through_share: float
     through_margin: float

@@ -232,13 +232,14 @@ def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None
 
 
 def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_session: np.ndarray,
-                      clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views: int,
+                      clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views,
                       clear_since_det: np.ndarray | None = None, quiet_sessions: int | None = None,
                       quiet_views: int | None = None, through_since_det: np.ndarray | None = None,
                       empty_views: int | None = None) -> np.ndarray:
     """(M,) bool: active objects of earlier sessions seen clearly in at least ``views`` frames of
-    this session and detected in none: a whole visit's worth of views, not one unlucky frame
-    (``clear_session`` holds the session of the clear views + 1, 0 for none yet).
+    this session (a number, or (M,) per object; inf: never by one session) and detected in none: a
+    whole visit's worth of views, not one unlucky frame (``clear_session`` holds the session of the
+    clear views + 1, 0 for none yet).
 
     With ``quiet_sessions`` (and ``clear_since_det``: clear views without a detection since the
     last detection, over sessions), also those not detected in the last ``quiet_sessions``

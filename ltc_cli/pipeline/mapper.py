@@ -67,6 +67,8 @@ class Mapper(InstanceMerging):
         self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
         outgrow = config["integration"]["partial_outgrow"] or {}
         self._outgrow = [outgrow.get(c) for c in smap.classes] + [None]
+        fixtures = set(config["maintenance"]["fixture_classes"] or [])
+        self._fixture = np.array([c in fixtures for c in smap.classes] + [False])
         turn = config["integration"]["partial_outgrow_turn"]
         self._outgrow_turn = None if turn is None else np.radians(turn)
         self.rates = DetectionRates(smap, config["maintenance"])
@@ -274,9 +276,11 @@ class Mapper(InstanceMerging):
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
+            # Built-in things go by absent_quiet_sessions of silence only, never by one session's.
+            views = np.where(self._fixture[top_class(t.scores)], np.inf, absent)
             old = np.flatnonzero(absent_in_session(
                 t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
-                absent, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"],
+                views, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"] or absent,
                 t.through_since_det, m_cfg["absent_through_views"]))
             for row in old:
                 self._remove(row, frame_index, frame_key, absent_detail(
