@@ -212,3 +212,46 @@ def test_square_dilation_is_scipys_maximum_filter():
         mask[0, -1] = True  # a pixel at the border
         expected = ndimage.maximum_filter(mask, size=2 * radius + 1, mode="constant")
         np.testing.assert_array_equal(square_dilation(mask, radius), expected)
+
+
+@pytest.mark.parametrize("fixtures, gone", [([], True), (["chair"], False)])
+def test_a_fixture_is_not_removed_by_one_silent_session(fixtures, gone):
+    """The chair of the test above, clearly visible in 5 frames of session 1 and detected in none:
+    gone by the absence rule, unless its class is a fixture; then one session's silence is not
+    enough (absent_quiet_sessions 2 needs a second)."""
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["seen_empty_share"] = None
+    cfg["maintenance"]["fixture_classes"] = fixtures
+    mapper, row = mapper_with_chair(cfg, n_det=50)
+    empty, _ = render([], wall_x=4.0)
+    for k in range(5):
+        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    assert mapper.prune_unconfirmed(2, -1, "end", None) == int(gone)
+    assert bool(mapper.map.objects.status[row] == REMOVED) is gone
+
+
+def test_a_fixture_silent_for_two_sessions_goes():
+    """A fixture chair last detected in session 0, clearly visible in 5 frames of session 2 (and in
+    none of session 1) with no detection: two sessions of silence, 5 clear views since its last
+    detection (absent_after_views): the quiet-session rule removes it."""
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["seen_empty_share"] = None
+    cfg["maintenance"]["fixture_classes"] = ["chair"]
+    mapper, row = mapper_with_chair(cfg, n_det=50, session=2)
+    empty, _ = render([], wall_x=4.0)
+    for k in range(5):
+        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+    assert mapper.prune_unconfirmed(2, -1, "end", None) == 1
+    assert mapper.map.objects.status[row] == REMOVED
+
+
+def test_fixtures_by_default_and_in_the_paper():
+    from pathlib import Path
+
+    import yaml
+
+    assert defaults()["maintenance"]["fixture_classes"] == ["sink", "toilet", "oven", "refrigerator"]
+    paper = yaml.safe_load((Path(__file__).resolve().parent.parent / "docs" / "paper.yaml").read_text())
+    assert paper["maintenance"]["fixture_classes"] is None
