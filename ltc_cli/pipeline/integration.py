@@ -180,14 +180,13 @@ def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float
 
 
 def merge_objects(keep: Box, drop: Box, s_keep: np.ndarray, s_drop: np.ndarray, w_keep: float, w_drop: float,
-                  erosion: float, min_extent: float, outgrow: float | None = None,
-                  max_turn: float | None = None) -> tuple[Box, np.ndarray]:
+                  erosion: float, min_extent: float, outgrow: float | None = None) -> tuple[Box, np.ndarray]:
     """Instance de-duplication: (box, class vector) of two map objects that are one.
 
     The box follows the four cases of :func:`integrate_box` with ``drop`` as the observation; the
     class vectors follow eq. 3 generalised to two map objects: the observation-weighted mean.
     """
-    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent, outgrow, max_turn)
+    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent, outgrow)
     return box, merged_scores(s_keep, s_drop, w_keep, w_drop)
 
 
