@@ -26,6 +26,13 @@ CLASSES = ["book", "bottle", "dining table"]  # then other
     ((0.74, 0.49, True), (0.47, 1.02, True), False),     # a plant's leaves called bottle: 0.485 < 0.98
     ((0.05, 0.10, True), (0.10, 0.20, True), False),     # exactly twice its height above its bottom: alike
     ((0.05, 0.10, True), (0.105, 0.21, True), True),     # 0.21: unlike
+    # A monitor's foot called mouse (0.75-0.80) under its screen's box (0.85-1.25): another base
+    # (0.10 apart, over the foot's 0.05 m height): the stand rule's case, not judged here.
+    ((0.775, 0.05, True), (1.05, 0.40, True), False),
+    # The foot as mapped on a revisit (0.745-0.915, the neck with it) under a screen's box grown
+    # down to 0.84: its bottom 0.095 m under the screen's, more than a quarter of its 0.17 m.
+    ((0.83, 0.17, True), (1.04, 0.40, True), False),
+    ((0.535, 0.07, True), (0.765, 0.27, True), False),    # a 0.27 m box 0.13 m above the book's base
 ])
 def test_unlike_heights_by_hand(short, tall, unlike):
     assert bool(unlike_heights(*short, *tall, 0.5)) is unlike
