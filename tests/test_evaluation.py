@@ -424,6 +424,40 @@ def test_present_objects_deleted_by_maintenance(tmp_path):
     assert maintenance_removed_ids(events) == [2, 3, 5, 6, 7]
 
 
+def test_a_removal_is_judged_against_the_lap_it_was_made_in(tmp_path):
+    """A chair rightly removed after it was carried away does not count as "deleted while present"
+    because a new chair stands at its old place two laps later; a removal while the object stood
+    there does, whenever it was made."""
+    from ltc_cli.map.model import REMOVED, Event, SemanticMap
+    from ltc_cli.map.store import load_map, save_map
+    from ltc_cli.tools.evaluate import evaluate_map
+    from ltc_cli.tools.lap_history import maintenance_removals
+    from tests.sample_maps import SESSION, add
+
+    lap1 = _gt_doc([_obj(1, "chair", 0, 0), _obj(2, "chair", 5, 0), _obj(3, "bottle", 8, 0)], lap=1)
+    lap2 = _gt_doc([_obj(1, "chair", 0, 0), _obj(3, "bottle", 8, 0)], lap=2)  # chair 2 taken away
+    lap3 = _gt_doc([_obj(1, "chair", 0, 0), _obj(3, "bottle", 8, 0), _obj(4, "chair", 5.1, 0)], lap=3)
+    smap = SemanticMap.new(["chair", "bottle"])
+    smap.sessions = [dict(SESSION) for _ in range(3)]
+    add(smap, [0.0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.8)  # 1: chair 1, active
+    add(smap, [5.0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.4, status=REMOVED)  # 2: chair 2's, lap 2
+    add(smap, [0.1, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.4, status=REMOVED)  # 3: chair 1's, lap 1
+    add(smap, [8.0, 0, 0.5], 0.0, [1, 1, 1], "bottle", 0.4, status=REMOVED)  # 4: bottle 3's, lap 3
+    for oid, session in ((2, 1), (3, 0), (4, 2)):
+        smap.events.append(Event(session, 5, f"lap{session + 1}/000005", "removed", oid, 0,
+                                 "other 0.510 > chair 0.400 after 6 non-detections and 3 detections"))
+    assert maintenance_removals(smap.events) == {2: 1, 3: 0, 4: 2}
+    path = tmp_path / "m.h5"
+    save_map(smap, path)
+    smap = load_map(path)
+    d = evaluate_map(smap, lap3, [lap1, lap2])["deleted_while_present"]
+    assert (d["count"], d["present"], d["gt_ids"], d["map_ids"]) == (2, 3, [1, 3], [3, 4])
+    assert d["lost_gt_ids"] == [3]  # the chair has its active map object 1; the bottle has none
+    # Without the earlier laps every removal is judged against lap 3: chair 4 is counted.
+    d = evaluate_map(smap, lap3)["deleted_while_present"]
+    assert (d["count"], d["gt_ids"], d["map_ids"]) == (3, [1, 3, 4], [2, 3, 4])
+
+
 def test_ids_kept_from_two_hand_built_results():
     from ltc_cli.tools.evaluate import ids_kept
 

@@ -34,7 +34,7 @@ from ltc_cli.tools.lap_history import (  # noqa: F401  (ids_kept: re-exported fo
     deleted_while_present,
     former_places,
     ids_kept,
-    maintenance_removed_ids,
+    maintenance_removals,
     object_arrays,
 )
 
@@ -388,15 +388,22 @@ def map_objects(smap: SemanticMap, rows=None) -> list[dict]:
 def evaluate_map(smap: SemanticMap, gt: dict, previous=None, **kw) -> dict:
     """Metrics of DESIGN.md section 8 for a map (see :func:`evaluate`; ``previous`` is one earlier
     lap's ground truth or a sequence of them, oldest first), plus ``deleted_while_present``: the
-    ground-truth objects of this lap on which a map object stood that maintenance removed
+    ground-truth objects of this lap that maintenance removed while they were there
     (:func:`ltc_cli.tools.lap_history.deleted_while_present`, from the map's event log), with
-    ``lost_gt_ids``: those of them that no map object stands on now (FN)."""
+    ``lost_gt_ids``: those of them that no map object stands on now (FN). When the laps given
+    (earlier ones and this one) are as many as the map's sessions, session k's removals are judged
+    against lap k + 1's objects; otherwise against this lap's."""
     res = evaluate(map_objects(smap), gt, previous_gt=previous, **kw)
-    ids = [i for i in maintenance_removed_ids(smap.events) if 1 <= i <= smap.objects.n]
+    removals = {i: s for i, s in maintenance_removals(smap.events).items() if 1 <= i <= smap.objects.n}
+    ids = sorted(removals)
     removed = [as_eval_object(o) for o in map_objects(smap, np.array(ids, dtype=np.int64) - 1)]
-    d = deleted_while_present(
-        removed, _objects_and_changes(gt)[0], max_center_distance=kw.get("max_center_distance", 3.0)
-    )
+    current = _objects_and_changes(gt)[0]
+    laps = [*_earlier_laps(previous), current]
+    at_removal = None
+    if len(laps) == len(smap.sessions):
+        at_removal = [laps[removals[i]] if 0 <= removals[i] < len(laps) else None for i in ids]
+    d = deleted_while_present(removed, current, gt_at_removal=at_removal,
+                              max_center_distance=kw.get("max_center_distance", 3.0))
     d["lost_gt_ids"] = sorted(set(d["gt_ids"]) & set(res["fn_ids"]))
     res["deleted_while_present"] = d
     return res

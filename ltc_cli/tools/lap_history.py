@@ -102,18 +102,25 @@ def ids_kept(before: Mapping, after: Mapping, tol: float = UNCHANGED_DISTANCE) -
 
 
 def _event_field(event, key):
-    return event.get(key) if isinstance(event, Mapping) else getattr(event, key)
+    return event.get(key) if isinstance(event, Mapping) else getattr(event, key, None)
+
+
+def maintenance_removals(events) -> dict[int, int]:
+    """{map object id: the session it was removed in} for the removals by non-detections (map
+    maintenance, eq. 4 and the absence rule): events of kind ``removed`` whose detail starts with
+    "other" (the `other` score overtook the object's class). Other removals (e.g. "unconfirmed": a
+    one-off detection never seen again) are not counted. An event without a session gives -1."""
+    out = {}
+    for e in events:
+        if _event_field(e, "kind") == "removed" and str(_event_field(e, "detail") or "").startswith("other"):
+            session = _event_field(e, "session")
+            out[int(_event_field(e, "object_id"))] = -1 if session is None else int(session)
+    return out
 
 
 def maintenance_removed_ids(events) -> list[int]:
-    """Ids of the map objects removed by non-detections (map maintenance, eq. 4): events of kind
-    ``removed`` whose detail starts with "other" (the `other` score overtook the object's class).
-    Other removals (e.g. "unconfirmed": a one-off detection never seen again) are not counted."""
-    return sorted({
-        int(_event_field(e, "object_id"))
-        for e in events
-        if _event_field(e, "kind") == "removed" and str(_event_field(e, "detail") or "").startswith("other")
-    })
+    """Ids of the map objects removed by non-detections (see :func:`maintenance_removals`)."""
+    return sorted(maintenance_removals(events))
 
 
 def object_arrays(objs):
@@ -125,38 +132,37 @@ def object_arrays(objs):
             np.array([o.size for o in objs], dtype=np.float64))
 
 
-def deleted_while_present(removed_objects, gt_objects, *, max_center_distance: float = 3.0) -> dict:
-    """Ground-truth objects present in the current lap on which a map object stood that maintenance
-    removed (at any time).
+def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None,
+                          max_center_distance: float = 3.0) -> dict:
+    """Ground-truth objects present in the current lap that maintenance removed (at any time) while
+    they stood where their removed map object was.
 
-    removed_objects: the map objects removed by non-detections (see :func:`maintenance_removed_ids`),
+    removed_objects: the map objects removed by non-detections (see :func:`maintenance_removals`),
         with the box and class they had when removed.
     gt_objects: the current lap's ground-truth objects.
+    gt_at_removal: per removed object, the ground-truth objects of the lap it was removed in (None,
+        or a None entry: the current lap's). A chair rightly removed after it was carried away is
+        not "deleted while present" because another chair stands at that place laps later.
 
-    Each removed object is a view of the ground-truth object it overlaps best among those of its class
-    (XY IoU > 0, centres within ``max_center_distance``; ties: nearer centre); one with no such
-    object was rightly removed (or was never right). Not one-to-one: an object deleted and rebuilt
-    twice has two removed map objects on it and counts once.
+    Each removed object is a view of the ground-truth object it overlaps best among those of its
+    class in the lap it was removed in (XY IoU > 0, centres within ``max_center_distance``; ties:
+    nearer centre); one with no such object was rightly removed (or was never right). It counts when
+    that object is present in the current lap. Not one-to-one: an object deleted and rebuilt twice
+    has two removed map objects on it and counts once.
 
     Returns {"count": ground-truth objects with a removed map object on them, "present": ground-truth
     objects, "share": count / present (None when there are none), "gt_ids", "map_ids"}.
     """
     G = len(gt_objects)
+    present = {int(g.id) for g in gt_objects}
+    if gt_at_removal is None:
+        gt_at_removal = [None] * len(removed_objects)
     gt_ids, map_ids = set(), []
-    if removed_objects and G:
-        ca, ya, sa = object_arrays(removed_objects)
-        cg, yg, sg = object_arrays(gt_objects)
-        iou, _ = pairwise_ious_arrays(ca, ya, sa, cg, yg, sg)
-        dist = np.linalg.norm(ca[:, None, :] - cg[None, :, :], axis=2)
-        same = np.array([[r.cls == g.cls for g in gt_objects] for r in removed_objects], dtype=bool)
-        ok = same & (iou > 0) & (dist <= max_center_distance)
-        for i, r in enumerate(removed_objects):
-            if not ok[i].any():
-                continue
-            # Best IoU, then the nearer centre: lexsort's last key is the primary one.
-            cand = np.flatnonzero(ok[i])
-            j = cand[np.lexsort((dist[i, cand], -iou[i, cand]))[0]]
-            gt_ids.add(int(gt_objects[j].id))
+    for r, lap_gt in zip(removed_objects, gt_at_removal):
+        lap_gt = gt_objects if lap_gt is None else lap_gt
+        j = _best_same_class(r, lap_gt, max_center_distance)
+        if j is not None and int(lap_gt[j].id) in present:
+            gt_ids.add(int(lap_gt[j].id))
             map_ids.append(int(r.id))
     return {
         "count": len(gt_ids),
@@ -165,3 +171,20 @@ def deleted_while_present(removed_objects, gt_objects, *, max_center_distance: f
         "gt_ids": sorted(gt_ids),
         "map_ids": sorted(map_ids),
     }
+
+
+def _best_same_class(obj, gt_objects, max_center_distance: float):
+    """Index of the ground-truth object of ``obj``'s class it overlaps best (XY IoU > 0, centres
+    within ``max_center_distance``; ties: nearer centre), or None."""
+    if not gt_objects:
+        return None
+    ca, ya, sa = object_arrays([obj])
+    cg, yg, sg = object_arrays(gt_objects)
+    iou = pairwise_ious_arrays(ca, ya, sa, cg, yg, sg)[0][0]
+    dist = np.linalg.norm(cg - ca[0], axis=1)
+    same = np.array([obj.cls == g.cls for g in gt_objects], dtype=bool)
+    cand = np.flatnonzero(same & (iou > 0) & (dist <= max_center_distance))
+    if not cand.size:
+        return None
+    # Best IoU, then the nearer centre: lexsort's last key is the primary one.
+    return int(cand[np.lexsort((dist[cand], -iou[cand]))[0]])
