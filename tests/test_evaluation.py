@@ -386,7 +386,8 @@ def _removal_map():
     from tests.sample_maps import add
 
     smap = SemanticMap.new(["chair", "couch", "tv"])
-    add(smap, [0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.8)  # 1: active, on GT chair 1
+    add(smap, [0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.8, seen=(1, 10, 1, 20))  # 1: on GT chair 1, made
+    # after object 6 (below) was removed at frame 5: rebuilt. (Ids are only for the test's reading.)
     for center, cls in (([3.0, 0, 0.5], "couch"),  # 2: on GT couch 2 (IoU 0.8 / 1.2)
                         ([3.2, 0, 0.5], "couch"),  # 3: rebuilt and deleted again on couch 2
                         ([6.0, 0, 0.5], "tv"),  # 4: unconfirmed removal on GT tv 3: not maintenance
@@ -417,7 +418,7 @@ def test_present_objects_deleted_by_maintenance(tmp_path):
     d = r["deleted_while_present"]
     # GT chair 1 (removed object 6) and couch 2 (removed objects 2 and 3); 4 objects present.
     assert d == {"count": 2, "present": 4, "share": 0.5, "gt_ids": [1, 2], "map_ids": [2, 3, 6],
-                 "lost_gt_ids": [2]}  # the chair was rebuilt (active object 1), the couch not
+                 "duplicates_removed": [], "lost_gt_ids": [2]}  # the chair was rebuilt (active object 1), the couch not
     assert (r["tp"], r["fp"], r["fn"]) == (1, 0, 3)  # removed objects are not in the map
     # Event dicts (as a JSON export would give) work as well.
     events = [{"kind": e.kind, "object_id": e.object_id, "detail": e.detail} for e in smap.events]
@@ -427,7 +428,8 @@ def test_present_objects_deleted_by_maintenance(tmp_path):
 def test_a_removal_is_judged_against_the_lap_it_was_made_in(tmp_path):
     """A chair rightly removed after it was carried away does not count as "deleted while present"
     because a new chair stands at its old place two laps later; a removal while the object stood
-    there does, whenever it was made."""
+    there does, whenever it was made, unless the map object that stands on it now is older than the
+    removal (the removed one was a duplicate)."""
     from ltc_cli.map.model import REMOVED, Event, SemanticMap
     from ltc_cli.map.store import load_map, save_map
     from ltc_cli.tools.evaluate import evaluate_map
@@ -439,23 +441,25 @@ def test_a_removal_is_judged_against_the_lap_it_was_made_in(tmp_path):
     lap3 = _gt_doc([_obj(1, "chair", 0, 0), _obj(3, "bottle", 8, 0), _obj(4, "chair", 5.1, 0)], lap=3)
     smap = SemanticMap.new(["chair", "bottle"])
     smap.sessions = [dict(SESSION) for _ in range(3)]
-    add(smap, [0.0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.8)  # 1: chair 1, active
+    add(smap, [0.0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.8, seen=(1, 0, 2, 9))  # 1: chair 1, rebuilt in lap 2
     add(smap, [5.0, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.4, status=REMOVED)  # 2: chair 2's, lap 2
     add(smap, [0.1, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.4, status=REMOVED)  # 3: chair 1's, lap 1
     add(smap, [8.0, 0, 0.5], 0.0, [1, 1, 1], "bottle", 0.4, status=REMOVED)  # 4: bottle 3's, lap 3
-    for oid, session in ((2, 1), (3, 0), (4, 2)):
+    add(smap, [0.05, 0, 0.5], 0.0, [1, 1, 1], "chair", 0.4, status=REMOVED)  # 5: a second box on chair 1
+    for oid, session in ((2, 1), (3, 0), (4, 2), (5, 2)):
         smap.events.append(Event(session, 5, f"lap{session + 1}/000005", "removed", oid, 0,
                                  "other 0.510 > chair 0.400 after 6 non-detections and 3 detections"))
-    assert maintenance_removals(smap.events) == {2: 1, 3: 0, 4: 2}
+    assert maintenance_removals(smap.events) == {2: (1, 5), 3: (0, 5), 4: (2, 5), 5: (2, 5)}
     path = tmp_path / "m.h5"
     save_map(smap, path)
     smap = load_map(path)
     d = evaluate_map(smap, lap3, [lap1, lap2])["deleted_while_present"]
     assert (d["count"], d["present"], d["gt_ids"], d["map_ids"]) == (2, 3, [1, 3], [3, 4])
     assert d["lost_gt_ids"] == [3]  # the chair has its active map object 1; the bottle has none
+    assert d["duplicates_removed"] == [5]  # removed in lap 3, after object 1 was made in lap 2
     # Without the earlier laps every removal is judged against lap 3: chair 4 is counted.
     d = evaluate_map(smap, lap3)["deleted_while_present"]
-    assert (d["count"], d["gt_ids"], d["map_ids"]) == (3, [1, 3, 4], [2, 3, 4])
+    assert (d["count"], d["gt_ids"], d["map_ids"], d["duplicates_removed"]) == (3, [1, 3, 4], [2, 3, 4], [5])
 
 
 def test_ids_kept_from_two_hand_built_results():

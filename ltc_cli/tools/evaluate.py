@@ -388,22 +388,26 @@ def map_objects(smap: SemanticMap, rows=None) -> list[dict]:
 def evaluate_map(smap: SemanticMap, gt: dict, previous=None, **kw) -> dict:
     """Metrics of DESIGN.md section 8 for a map (see :func:`evaluate`; ``previous`` is one earlier
     lap's ground truth or a sequence of them, oldest first), plus ``deleted_while_present``: the
-    ground-truth objects of this lap that maintenance removed while they were there
-    (:func:`ltc_cli.tools.lap_history.deleted_while_present`, from the map's event log), with
+    ground-truth objects of this lap that maintenance removed while they were there and the map had
+    no other object on them (:func:`ltc_cli.tools.lap_history.deleted_while_present`, from the
+    map's event log and the objects' first session and frame), with
     ``lost_gt_ids``: those of them that no map object stands on now (FN). When the laps given
     (earlier ones and this one) are as many as the map's sessions, session k's removals are judged
     against lap k + 1's objects; otherwise against this lap's."""
     res = evaluate(map_objects(smap), gt, previous_gt=previous, **kw)
-    removals = {i: s for i, s in maintenance_removals(smap.events).items() if 1 <= i <= smap.objects.n}
+    removals = {i: at for i, at in maintenance_removals(smap.events).items() if 1 <= i <= smap.objects.n}
     ids = sorted(removals)
     removed = [as_eval_object(o) for o in map_objects(smap, np.array(ids, dtype=np.int64) - 1)]
     current = _objects_and_changes(gt)[0]
     laps = [*_earlier_laps(previous), current]
     at_removal = None
     if len(laps) == len(smap.sessions):
-        at_removal = [laps[removals[i]] if 0 <= removals[i] < len(laps) else None for i in ids]
-    d = deleted_while_present(removed, current, gt_at_removal=at_removal,
-                              max_center_distance=kw.get("max_center_distance", 3.0))
+        at_removal = [laps[removals[i][0]] if 0 <= removals[i][0] < len(laps) else None for i in ids]
+    t = smap.objects
+    since = {int(m["gt_id"]): (int(t.first_session[m["map_id"] - 1]), int(t.first_frame[m["map_id"] - 1]))
+             for m in res["matches"]}
+    d = deleted_while_present(removed, current, gt_at_removal=at_removal, removed_at=[removals[i] for i in ids],
+                              mapped_since=since, max_center_distance=kw.get("max_center_distance", 3.0))
     d["lost_gt_ids"] = sorted(set(d["gt_ids"]) & set(res["fn_ids"]))
     res["deleted_while_present"] = d
     return res

@@ -23,6 +23,7 @@ from ltc_cli.geometry.polygons import pairwise_ious_arrays
 # enough for annotation noise, small next to any real move (ltc simulate moves objects by
 # decimetres to metres).
 UNCHANGED_DISTANCE = 0.1
+END_OF_SESSION = 2**62  # the frame of an end-of-session event: after every frame of its session
 
 
 def unchanged(a, b, tol: float = UNCHANGED_DISTANCE) -> bool:
@@ -105,16 +106,19 @@ def _event_field(event, key):
     return event.get(key) if isinstance(event, Mapping) else getattr(event, key, None)
 
 
-def maintenance_removals(events) -> dict[int, int]:
-    """{map object id: the session it was removed in} for the removals by non-detections (map
+def maintenance_removals(events) -> dict[int, tuple[int, int]]:
+    """{map object id: (session, frame) it was removed at} for the removals by non-detections (map
     maintenance, eq. 4 and the absence rule): events of kind ``removed`` whose detail starts with
     "other" (the `other` score overtook the object's class). Other removals (e.g. "unconfirmed": a
-    one-off detection never seen again) are not counted. An event without a session gives -1."""
+    one-off detection never seen again) are not counted. An end-of-session removal (frame -1) is
+    at frame ``END_OF_SESSION``, after every frame; a missing session or frame is -1."""
     out = {}
     for e in events:
         if _event_field(e, "kind") == "removed" and str(_event_field(e, "detail") or "").startswith("other"):
-            session = _event_field(e, "session")
-            out[int(_event_field(e, "object_id"))] = -1 if session is None else int(session)
+            session, frame = (_event_field(e, k) for k in ("session", "frame"))
+            frame = -1 if frame is None else int(frame)
+            out[int(_event_field(e, "object_id"))] = (-1 if session is None else int(session),
+                                                      END_OF_SESSION if frame < 0 and session is not None else frame)
     return out
 
 
@@ -132,10 +136,10 @@ def object_arrays(objs):
             np.array([o.size for o in objs], dtype=np.float64))
 
 
-def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None,
-                          max_center_distance: float = 3.0) -> dict:
+def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None, removed_at=None,
+                          mapped_since=None, max_center_distance: float = 3.0) -> dict:
     """Ground-truth objects present in the current lap that maintenance removed (at any time) while
-    they stood where their removed map object was.
+    they stood where their removed map object was, and the map had no other object on them.
 
     removed_objects: the map objects removed by non-detections (see :func:`maintenance_removals`),
         with the box and class they had when removed.
@@ -143,6 +147,10 @@ def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None,
     gt_at_removal: per removed object, the ground-truth objects of the lap it was removed in (None,
         or a None entry: the current lap's). A chair rightly removed after it was carried away is
         not "deleted while present" because another chair stands at that place laps later.
+    removed_at, mapped_since: per removed object, when it was removed, and {ground-truth id: when
+        the map object that stands on it now was created}, as comparable (session, frame) pairs.
+        A removal after the object's present map object was made removed a duplicate: the map
+        still had the object, under the id it has now (listed as ``duplicates_removed``).
 
     Each removed object is a view of the ground-truth object it overlaps best among those of its
     class in the lap it was removed in (XY IoU > 0, centres within ``max_center_distance``; ties:
@@ -151,25 +159,34 @@ def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None,
     has two removed map objects on it and counts once.
 
     Returns {"count": ground-truth objects with a removed map object on them, "present": ground-truth
-    objects, "share": count / present (None when there are none), "gt_ids", "map_ids"}.
+    objects, "share": count / present (None when there are none), "gt_ids", "map_ids",
+    "duplicates_removed": map ids}.
     """
     G = len(gt_objects)
     present = {int(g.id) for g in gt_objects}
-    if gt_at_removal is None:
-        gt_at_removal = [None] * len(removed_objects)
-    gt_ids, map_ids = set(), []
-    for r, lap_gt in zip(removed_objects, gt_at_removal):
+    n = len(removed_objects)
+    gt_at_removal = [None] * n if gt_at_removal is None else gt_at_removal
+    removed_at = [None] * n if removed_at is None else removed_at
+    mapped_since = mapped_since or {}
+    gt_ids, map_ids, duplicates = set(), [], []
+    for r, lap_gt, when in zip(removed_objects, gt_at_removal, removed_at):
         lap_gt = gt_objects if lap_gt is None else lap_gt
         j = _best_same_class(r, lap_gt, max_center_distance)
-        if j is not None and int(lap_gt[j].id) in present:
-            gt_ids.add(int(lap_gt[j].id))
-            map_ids.append(int(r.id))
+        if j is None or int(lap_gt[j].id) not in present:
+            continue
+        gid = int(lap_gt[j].id)
+        if when is not None and gid in mapped_since and tuple(mapped_since[gid]) < tuple(when):
+            duplicates.append(int(r.id))
+            continue
+        gt_ids.add(gid)
+        map_ids.append(int(r.id))
     return {
         "count": len(gt_ids),
         "present": G,
         "share": len(gt_ids) / G if G else None,
         "gt_ids": sorted(gt_ids),
         "map_ids": sorted(map_ids),
+        "duplicates_removed": sorted(duplicates),
     }
 
 
