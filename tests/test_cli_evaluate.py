@@ -76,6 +76,9 @@ def test_evaluate_reports_iou_levels_and_multi_lap_figures(mapped):
     assert rows["XY IoU > 0.25"][0] == str(doc["at_iou"]["0.25"]["tp"])
     assert rows["XY IoU > 0.5"][0] == str(doc["at_iou"]["0.5"]["tp"])
     assert "at XY IoU > 0.25: precision" in r.output.splitlines()[-1]
+    deleted = next(ln for ln in r.output.splitlines() if ln.startswith("maintenance deleted"))
+    assert (f"on {d['count']} of the {d['present']} objects" in deleted
+            and f"{len(d['duplicates_removed'])} second box(es) removed" in deleted)
 
 
 def _write_laps(root):

@@ -41,7 +41,8 @@ def evaluation_table(res: dict) -> list[str]:
     if d is not None:
         lines.append(f"maintenance deleted a map object on {d['count']} of the {d['present']} objects "
                      f"present in this lap ({fmt_value(d['share'], '.1%')}); "
-                     f"{len(d.get('lost_gt_ids', []))} of them not in the map now")
+                     f"{len(d.get('lost_gt_ids', []))} of them not in the map now; "
+                     f"{len(d.get('duplicates_removed', []))} second box(es) removed from objects still mapped")
     return lines
 
 
