@@ -287,28 +287,3 @@ def test_pixel_weights_by_class_weigh_those_classes_only():
     assert out.modeled.source.tolist() == [0]  # the bed's box only
     cfg["modeling"]["pixel_weights"] = False
     assert ClassFlags.from_settings(classes, cfg).weighted is None
-
-
-def test_bound_along_ray_takes_back_the_depth_noise_by_hand():
-    from ltc_cli.geometry.boxes import Boxes
-    from ltc_cli.pipeline.modeling import bound_along_ray
-
-    # Camera at the origin; every box centred at (3, 0, 0.5): range^2 = 9.25, so with noise 0.005
-    # and 2 sigmas the allowance is 2 * 2 * 0.005 * 9.25 = 0.185 m times the side's alignment.
-    yaws = np.array([0.0, 0.0, 0.0, np.pi / 2, np.pi / 4])
-    sizes = np.array([[0.30, 0.08, 0.3],   # long along the ray: 0.30 - 0.185 = 0.115
-                      [0.08, 1.00, 0.5],   # a tv face on: shorter along the ray, unchanged
-                      [0.20, 0.15, 0.3],   # the cut would go below the width: 0.15
-                      [0.08, 0.30, 0.3],   # turned a quarter: its y side lies along the ray
-                      [0.30, 0.08, 0.3]])  # at 45 degrees: 0.30 - 0.185 * cos 45 = 0.1692
-    boxes = Boxes(np.tile([3.0, 0.0, 0.5], (5, 1)), yaws, sizes.copy(), np.ones((5, 8), bool))
-    _ = boxes.corners  # cached before: must be recomputed after
-    bound_along_ray(boxes, np.zeros(3), 0.005)
-    expect = sizes.copy()
-    expect[0, 0], expect[2, 0], expect[3, 1] = 0.115, 0.15, 0.115
-    expect[4, 0] = 0.30 - 0.185 * np.cos(np.pi / 4)
-    np.testing.assert_allclose(boxes.size, expect, atol=1e-9)
-    np.testing.assert_allclose(boxes.corners, box_corners(boxes.center, boxes.yaw, expect), atol=1e-9)
-    untouched = Boxes(np.tile([3.0, 0.0, 0.5], (5, 1)), yaws, sizes.copy(), np.ones((5, 8), bool))
-    bound_along_ray(untouched, np.zeros(3), 0.0)
-    np.testing.assert_array_equal(untouched.size, sizes)

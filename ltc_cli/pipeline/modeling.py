@@ -280,31 +280,6 @@ def ground_to_floor(boxes: Boxes, grounded: np.ndarray, floor_z: float, max_gap:
         boxes._corners = None
 
 
-def bound_along_ray(boxes: Boxes, cam_xyz: np.ndarray, noise: float, sigmas: float = 2.0) -> None:
-    """Take back (in place) what the sensor's depth noise adds to a box along the view ray.
-
-    A depth camera's error grows with range (``noise`` z^2 metres of standard deviation; a Kinect
-    about 0.002, a stereo camera more), and a box spans its points' extremes: a 0.08 m bottle at
-    3.4 m whose depths spread 13-29 cm comes out 0.2-0.4 m long along the ray. The box's side
-    nearest the ray loses ``2 sigmas`` standard deviations at its centre's range (times how well it
-    lines up with the ray), but never below its side across the ray: a box is only shortened where
-    the noise, not the object, made it longer than wide (a tv seen face on keeps its depth).
-    """
-    if noise <= 0 or not len(boxes):
-        return
-    d_xy = boxes.center[:, :2] - cam_xyz[:2]
-    ray = d_xy / np.maximum(np.linalg.norm(d_xy, axis=1, keepdims=True), 1e-9)
-    c, s = np.cos(boxes.yaw), np.sin(boxes.yaw)
-    along_x, along_y = np.abs(c * ray[:, 0] + s * ray[:, 1]), np.abs(-s * ray[:, 0] + c * ray[:, 1])
-    axis = np.where(along_x >= along_y, 0, 1)
-    rows = np.arange(len(boxes))
-    rng = np.linalg.norm(boxes.center - cam_xyz, axis=1)
-    allowance = 2 * sigmas * noise * rng ** 2 * np.maximum(along_x, along_y)
-    length, width = boxes.size[rows, axis], boxes.size[rows, 1 - axis]
-    boxes.size[rows, axis] = np.maximum(length - allowance, np.minimum(length, width))
-    boxes._corners = None
-
-
 def defined_flags(visible: np.ndarray) -> np.ndarray:
     """A box is Defined (M,) when, for each of its 3 axes, some edge along it has both ends visible."""
     out = np.ones(visible.shape[:-1], dtype=bool)
@@ -420,8 +395,6 @@ def model_detections(
                          p["thin_extent"])
     if grounded is not None and floor_z is not None:
         ground_to_floor(boxes, np.asarray(grounded)[np.array(src)], floor_z, p["ground_max_gap"])
-    if p.get("depth_noise"):
-        bound_along_ray(boxes, T_map_camera[:3, 3], p["depth_noise"])
     out = ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))
     explained = p.get("min_mask_explained")
     if explained is None or all(crops[g][3] >= explained for g in kept):
