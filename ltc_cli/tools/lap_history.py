@@ -116,9 +116,11 @@ def maintenance_removals(events) -> dict[int, tuple[int, int]]:
     for e in events:
         if _event_field(e, "kind") == "removed" and str(_event_field(e, "detail") or "").startswith("other"):
             session, frame = (_event_field(e, k) for k in ("session", "frame"))
+            session = -1 if session is None else int(session)
             frame = -1 if frame is None else int(frame)
-            out[int(_event_field(e, "object_id"))] = (-1 if session is None else int(session),
-                                                      END_OF_SESSION if frame < 0 and session is not None else frame)
+            if frame < 0 and session >= 0:
+                frame = END_OF_SESSION
+            out[int(_event_field(e, "object_id"))] = (session, frame)
     return out
 
 
