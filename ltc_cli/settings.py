@@ -50,6 +50,7 @@ class AssociationSettings(TypedDict):
     threshold_other_class: float
     other_class_scale: Optional[float]
     other_class_height_ratio: Optional[float]
+    other_class_min_overlap: Optional[float]
     min_visible_pairs: int
     containment: Optional[float]
     containment_other_class: Optional[float]

@@ -13,7 +13,7 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
 from ltc_cli.pipeline.association import (
-    footprint_gaps, half_diagonals, pairwise_containment, similar_volume, thresholds_for, unlike_heights,
+    footprint_gaps, ground_shares, half_diagonals, pairwise_containment, similar_volume, thresholds_for, unlike_heights,
 )
 
 
@@ -73,10 +73,7 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
         if min_overlap is not None and close.any():
             # eq. 2 over the vertices visible in both: a partial box's visible corners can sit on
             # its neighbour's (two monitors edge to edge); one object's pieces share their ground.
-            foot = boxes.corners[:, :4, :2]
-            inter = convex_intersection_area(np.repeat(foot[a:a + 1], rest.size, axis=0), foot[rest])
-            area = boxes.size[:, 0] * boxes.size[:, 1]
-            apart = inter < min_overlap * np.minimum(area[a], area[rest])
+            apart = ground_shares(boxes.take(slice(a, a + 1)), boxes.take(rest)) < min_overlap
             if defined is not None:  # all 8 vertices of two Defined boxes are compared
                 exempt = defined[a] & defined[rest]
                 if established is not None:

@@ -17,7 +17,7 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, containing_candidate, containment, footprint_gaps, foreign_geometry, half_diagonals,
+    adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps, foreign_geometry, half_diagonals,
     match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, unlike_heights,
     within_reach,
 )
@@ -202,19 +202,19 @@ class Mapper(InstanceMerging):
                                      grow * half_diagonals(t.size[rows]), reach)]
             if rows.size == 0:
                 return -1, False
-        cand_classes = top_class(t.scores[rows])
-        dist = self.metric.distance(det, t.boxes(rows))
+        cand_classes, cand = top_class(t.scores[rows]), t.boxes(rows)
+        dist = self.metric.distance(det, cand)
         thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                              other_class_caps(det.size[0], t.size[rows], a_cfg["other_class_scale"]))
         unlike = (cand_classes != det_class) & unlike_heights(
             det.center[0, 2], det.size[0, 2], det_defined, t.center[rows, 2], t.size[rows, 2], t.defined[rows],
-            a_cfg["other_class_height_ratio"])
+            a_cfg["other_class_height_ratio"]) | apart_labels(det, cand, cand_classes == det_class,
+                                                              a_cfg["other_class_min_overlap"])
         best = nearest_under_threshold(dist, np.where(unlike, -1.0, thr))
         if best >= 0:
             return int(rows[best]), False
         if not a_cfg["containment"]:
             return -1, False
-        cand = t.boxes(rows)
         comparable = similar_volume(np.prod(det.size, axis=1), np.prod(cand.size, axis=1),
                                     a_cfg["other_class_volume_ratio"]) & ~unlike
         best = containing_candidate(containment(det, cand), cand_classes == det_class, a_cfg["containment"],
