@@ -39,12 +39,17 @@ def test_ground_shares_by_hand(a, b, share):
     assert ground_shares(box(*b), box(*a))[0] == pytest.approx(share, abs=1e-9)  # either order
 
 
-def test_only_different_labels_are_kept_apart():
+def test_only_judged_pairs_are_kept_apart():
     a, b = box(*MOUSE), box(*BOOK)
-    assert apart_labels(a, b, np.array([False]), 0.2).tolist() == [True]    # 0.067 < 0.2
-    assert apart_labels(a, b, np.array([True]), 0.2).tolist() == [False]    # one class: eq. 2 decides
-    assert apart_labels(a, b, np.array([False]), 0.05).tolist() == [False]  # 0.067 >= 0.05
-    assert apart_labels(a, b, np.array([False]), None).tolist() == [False]  # the paper
+    assert apart_labels(a, b, np.array([True]), 0.2).tolist() == [True]     # 0.067 < 0.2
+    assert apart_labels(a, b, np.array([False]), 0.2).tolist() == [False]   # not judged (one class, or beyond eq. 2)
+    assert apart_labels(a, b, np.array([True]), 0.05).tolist() == [False]   # 0.067 >= 0.05
+    assert apart_labels(a, b, np.array([True]), None).tolist() == [False]   # the paper
+    # One detection against several candidates: only the judged ones are clipped and told apart.
+    # The second candidate is a 0.2 m box centred on the mouse: the mouse wholly on it (share 1).
+    cands = Boxes(np.array([BOOK[0], MOUSE[0], BOOK[0]]), np.zeros(3),
+                  np.array([BOOK[2], [0.2, 0.2, 0.07], BOOK[2]]), np.ones((3, 8), bool))
+    assert apart_labels(a, cands, np.array([True, True, False]), 0.2).tolist() == [True, False, False]
 
 
 def associate(det, det_class, overrides=()):

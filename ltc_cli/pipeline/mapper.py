@@ -206,10 +206,11 @@ class Mapper(InstanceMerging):
         dist = self.metric.distance(det, cand)
         thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                              other_class_caps(det.size[0], t.size[rows], a_cfg["other_class_scale"]))
-        unlike = (cand_classes != det_class) & unlike_heights(
+        other = cand_classes != det_class
+        unlike = other & unlike_heights(
             det.center[0, 2], det.size[0, 2], det_defined, t.center[rows, 2], t.size[rows, 2], t.defined[rows],
-            a_cfg["other_class_height_ratio"]) | apart_labels(det, cand, cand_classes == det_class,
-                                                              a_cfg["other_class_min_overlap"])
+            a_cfg["other_class_height_ratio"])
+        unlike |= apart_labels(det, cand, other & ~unlike & (dist <= thr), a_cfg["other_class_min_overlap"])
         best = nearest_under_threshold(dist, np.where(unlike, -1.0, thr))
         if best >= 0:
             return int(rows[best]), False
