@@ -1,7 +1,7 @@
 """association.other_class_min_overlap (issue 9, twentieth round): a detection matches a map object
 of another top class only when they share at least that much of the smaller footprint. One object
-under two labels stands on its own ground; a "mouse" beside a stack of papers (on Values worked
-tum-fr1-rpy, a monitor's foot the detector calls so) does not. Values worked out by hand."""
+under two labels stands on its own ground; a "mouse" beside a stack of papers (on tum-fr1-rpy, a
+monitor's foot the detector calls so) does not. Values worked out by hand."""
 
 import numpy as np
 import pytest
