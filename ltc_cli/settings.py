@@ -66,6 +66,7 @@ class AssociationSettings(TypedDict):
     labels_apart: bool
     tentative_reshapes: bool
     stand_margin: float
+    stand_low: Optional[float]
     merge_containment: Optional[float]
     merge_current_box: bool
     merge_id_by_label: bool
@@ -78,7 +79,8 @@ class IntegrationSettings(TypedDict):
     unassigned_score: str
     relabel_weight: str
     stale_box_weight: Optional[float]
-    stale_partial_moves: bool
+    stale_partial_moves: Union[bool, str]
+    defined_part_volume: Optional[float]
     partial_outgrow: dict[str, float | None] | None
     partial_outgrow_turn: Optional[float]
 

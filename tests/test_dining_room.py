@@ -86,7 +86,9 @@ def test_boxes_are_upright_and_furniture_sized(dining_map):
     assert np.ptp(bottoms) < 0.15
     for o in chairs:
         width = max(o["size"][0], o["size"][1])
-        assert 0.3 <= width <= 0.8, o
+        # A wing-back armchair is 0.75-0.85 m wide; its box is 0.73-0.81 m as the up estimate
+        # moves by a fraction of a degree (the minimum-area rectangle turns by 7 degrees).
+        assert 0.3 <= width <= 0.85, o
         assert 0.7 <= o["size"][2] <= 1.3, o  # the wing-back armchair is the tallest, about 1.25 m
     couch = of(objs, "couch")[0]
     assert 1.4 <= max(couch["size"][:2]) <= 2.4 and 0.5 <= couch["size"][2] <= 1.1

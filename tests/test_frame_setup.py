@@ -256,3 +256,72 @@ def test_tum_fr1_rpy_up_is_the_desk_normal():
     assert angle_deg(up, [0, 0, 1]) < 5.0
     assert angle_deg(cameras_up(np.array([rec.frames[i].load().T_world_camera for i in (0, 100, 200)])),
                      [0, 0, 1]) > 25  # the cameras alone are far off
+
+
+def test_sample_positions_by_hand():
+    from ltc_cli.ingest.frame_setup import sample_positions
+
+    # 6 of 232: i * 231 // 5 for i = 0, 1, 2 and their mirrors 231 - p.
+    assert sample_positions(232, 6) == [0, 46, 92, 139, 185, 231]
+    assert sample_positions(231, 5) == [0, 57, 115, 173, 230]  # 230 / 2 = 115 is the middle frame
+    assert sample_positions(232, 5) == [0, 57, 174, 231]  # no middle frame: one fewer
+    assert sample_positions(4, 6) == [0, 1, 2, 3]
+    assert sample_positions(0, 6) == []
+    for n_frames in range(1, 60):
+        for n in range(2, 30):
+            pos = sample_positions(n_frames, n)
+            assert pos == sorted(n_frames - 1 - p for p in pos)  # the same set read backwards
+            assert len(pos) in (min(n, n_frames), n - 1) and len(set(pos)) == len(pos)
+
+
+def looking_down_with_tilt(tilt_deg: float) -> tuple:
+    """(depth (H, W), T_world_camera) of a camera 1 m above the floor z = 0 looking straight down,
+    whose recorded pose is rotated by ``tilt_deg`` about the world x axis (a pose error): the floor
+    then lies on the plane whose normal is z tilted by that angle about x."""
+    T_true = camera_pose([0.0, 0.0, 1.0], yaw=0.0, pitch_down=np.radians(90), down=(0, 0, -1))
+    depth = render_depth(T_true, [((0.0, 0.0, 1.0), 0.0, None)])
+    T_recorded = T_true.copy()
+    c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+    T_recorded[:3, :3] = np.array([[1, 0, 0], [0, c, -s], [0, s, c]]) @ T_true[:3, :3]
+    return depth, T_recorded
+
+
+def test_refine_up_averages_the_frames_own_planes():
+    """Three frames whose poses tilt the floor by 2, 4 and 12 degrees about x, every pixel on the
+    floor (equal support): within the 5 degree cone around z only the 2 and 4 degree frames count,
+    and their mean normal lies at 3 degrees; the second pass, around 3 degrees, still leaves out the
+    12 degree frame (9 degrees away). With a 15 degree cone all three count: the mean of the unit
+    normals at 2, 4 and 12 degrees, atan2(sum sin, sum cos)."""
+    from ltc_cli.ingest.frame_setup import refine_up
+
+    samples = [looking_down_with_tilt(a) for a in (2.0, 4.0, 12.0)]
+    for depth, _ in samples:
+        assert (depth > 0).all()
+    up = refine_up(np.array([0.0, 0.0, 1.0]), samples, INTR)
+    assert angle_deg(up, [0, 0, 1]) == pytest.approx(3.0, abs=1e-3)
+    assert abs(up[0]) < 1e-6  # tilted about x only
+    a = np.radians([2.0, 4.0, 12.0])
+    expected = np.degrees(np.arctan2(np.sin(a).sum(), np.cos(a).sum()))
+    up = refine_up(np.array([0.0, 0.0, 1.0]), samples, INTR, cone_deg=15.0)
+    assert angle_deg(up, [0, 0, 1]) == pytest.approx(expected, abs=1e-3)
+    # No plane within the cone: the input comes back.
+    np.testing.assert_array_equal(refine_up(np.array([1.0, 0.0, 0.0]), samples, INTR), [1.0, 0.0, 0.0])
+
+
+def test_tum_fr1_rpy_read_backwards_gets_the_same_map_frame():
+    """The up axis comes from frames spread the same from either end, so a pass in reverse order
+    shares the forward pass's map frame (5 frames taken from the front put them 0.96 degrees
+    apart)."""
+    tum = Path(__file__).resolve().parents[2] / "shared" / "data" / "tum-fr1-rpy"
+    if not (tum / "groundtruth.txt").is_file():
+        pytest.skip(f"{tum} is absent")
+    from ltc_cli.ingest.frame_setup import frame_setup_for
+    from ltc_cli.recordings.open import open_recording
+
+    forward = open_recording(tum)
+    backward = open_recording(tum)
+    backward.frames = backward.frames[::-1]
+    R_f, floor_f = frame_setup_for(forward)
+    R_b, floor_b = frame_setup_for(backward)
+    np.testing.assert_allclose(R_b, R_f, atol=1e-12)
+    assert floor_b == pytest.approx(floor_f, abs=1e-12)

@@ -130,9 +130,9 @@ def test_frame_setup_frames_are_decoded_once(monkeypatch):
     n = len(rec.frames)
     frame_setup_for(rec)
     sampled = len(calls)
-    assert sampled == 5
+    assert sampled == 6  # SAMPLE_FRAMES for a z-up recording
     frames = [ref.load() for ref in rec.frames]
-    assert len(calls) == n  # the 5 sampled frames were handed out, not decoded again
+    assert len(calls) == n  # the 6 sampled frames were handed out, not decoded again
     again = rec.frames[0].load()  # a later load of a sampled frame reads the file anew
     assert len(calls) == n + 1 and again is not frames[0]
     assert np.array_equal(again.depth_m, frames[0].depth_m)

@@ -53,6 +53,7 @@ def mapper_with_bottle(cfg, session):
 
 @pytest.mark.parametrize("moves, session, expected_x", [
     (True, 1, 0.15),    # stale: the box goes where the bottle is now
+    ("seen-empty", 1, 0.0),  # ... only once stage 4 sees its old place empty (below)
     (True, 0, 0.0),     # detected in this session already: the Defined box stays
     (False, 1, 0.0),    # the paper (docs/paper.yaml): the Defined box stays
 ])
@@ -71,6 +72,37 @@ def test_default_and_paper():
     import yaml
     from pathlib import Path
 
-    assert defaults()["integration"]["stale_partial_moves"] is True
+    assert defaults()["integration"]["stale_partial_moves"] == "seen-empty"
     paper = yaml.safe_load((Path(__file__).resolve().parent.parent / "docs" / "paper.yaml").read_text())
     assert paper["integration"]["stale_partial_moves"] is False
+
+
+# tests/scene.py: the camera at the origin looks along +x, depth = x. The bottle of session 0 stood
+# at x 2.0-2.1, y -0.05-0.05, z 0.7-1.0 (its face 0.1 x 0.3 m at 2 m: 25 x 75 px); now one stands
+# at y 0.10-0.20, 5 cm clear of the old footprint.
+OLD_BOTTLE = (2.0, 2.1, -0.05, 0.05, 0.7, 1.0)
+NEW_BOTTLE = (2.0, 2.1, 0.10, 0.20, 0.7, 1.0)
+
+
+@pytest.mark.parametrize("old_still_there, expected_y", [(False, 0.15), (True, 0.0)])
+def test_seen_empty_moves_only_when_the_old_place_is_empty(old_still_there, expected_y):
+    """stale_partial_moves: seen-empty (issue 9, twenty-first round). The frame's one "bottle"
+    mask is the new bottle's face: a partial box (its depth unmeasured) 15 cm from the old one, which
+    it matches. With the old place empty the rays through the old box reach the wall at 4 m, past
+    its middle (2.05 m): the box moves to the new bottle (its centre y 0.15, partial). With a bottle
+    still standing there the rays stop at 2.0 m: the box stays (y 0, Defined), the detection still
+    counts for it."""
+    from tests.scene import INTR, T_world_camera, render
+
+    cfg = defaults()
+    mapper, row = mapper_with_bottle(cfg, session=1)
+    t = mapper.map.objects
+    t.cols["center"][row] = [2.05, 0.0, 0.85]
+    t.cols["size"][row] = [0.1, 0.1, 0.3]
+    mapper.index.insert(row, t.center[row], t.size[row])
+    scene = [NEW_BOTTLE, OLD_BOTTLE] if old_still_there else [NEW_BOTTLE]
+    depth, masks = render(scene, wall_x=4.0)
+    mapper.process_frame(0, "0", [masks[0]], [np.array([0.9, 0.1, 0.0])], depth, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.n_det[row] == 11 and t.status[row] == ACTIVE and t.n == 1  # matched, nothing new
+    assert t.center[row, 1] == pytest.approx(expected_y, abs=0.02)
+    assert bool(t.defined[row]) is old_still_there

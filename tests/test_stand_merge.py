@@ -55,6 +55,24 @@ def test_stand_pairs_by_hand():
     assert stand_pairs(boxes(), TOP, None, 0.05) == []
 
 
+def test_a_stand_is_low_a_mug_by_the_screen_is_not_its_foot():
+    """association.stand_low (issue 9, twenty-first round): on the level tum-fr1-rpy map the mug in
+    front of one end of a monitor, 0.13-0.17 m tall, had its top within 5 cm of the screen's bottom
+    and went into it; the monitors' feet are flat (0.05-0.12 m under 0.37 m screens).
+    Here the screen (0) is 0.35 tall and the foot (1) 0.04: 0.114 of it. A mug (6) 0.17 tall stands
+    under the screen's end: x 2.15..2.25, y 0.20..0.30, z 0.845..1.015, its top 0.01 under the
+    screen's bottom, its footprint wholly under the screen grown by 0.05: 0.486 of its height."""
+    center = CENTER[:2] + [[2.2, 0.25, 0.93]]
+    size = SIZE[:2] + [[0.1, 0.1, 0.17]]
+    top = np.array([TV, MOUSE, CUP])
+    b = Boxes(np.array(center, float), np.zeros(3), np.array(size, float), np.ones((3, 8), bool))
+    assert sorted((a, c) for _, a, c in stand_pairs(b, top, 0.05, 0.05)) == [(0, 1), (0, 2)]
+    assert [(a, c) for _, a, c in stand_pairs(b, top, 0.05, 0.05, low=0.3)] == [(0, 1)]
+    assert [(a, c) for _, a, c in stand_pairs(b, top, 0.05, 0.05, low=0.12)] == [(0, 1)]
+    assert stand_pairs(b, top, 0.05, 0.05, low=0.11) == []  # 0.04 / 0.35 = 0.114 > 0.11
+    assert sorted((a, c) for _, a, c in stand_pairs(b, top, 0.05, 0.05, low=0.49)) == [(0, 1), (0, 2)]
+
+
 def test_a_partial_box_does_not_merge_with_the_neighbour_its_corners_touch():
     """Two monitors edge to edge: eq. 2 over the vertices visible in both can be small (here a
     distance of 0 stands for it) while their footprints share 0.02 x 0.1 = 0.002 m², 0.04 of

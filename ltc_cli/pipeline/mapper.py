@@ -1,8 +1,9 @@
 """The mapper: runs the four stages on each frame and applies their decisions to the map.
 
 The stages (modeling.py, association.py, integration.py, maintenance.py) are pure functions over
-arrays that return decisions; this file only feeds them, writes their results into the object table,
-keeps the grid index current, and logs every change in the event log. No I/O: the store saves and
+arrays that return decisions; this file (with its parts integrating.py and merging.py) only feeds
+them, writes their results into the object table, keeps the grid index current, and logs every
+change in the event log. No I/O: the store saves and
 loads the :class:`SemanticMap`; ingest drives :class:`Mapper` frame by frame.
 """
 
@@ -17,13 +18,12 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps, foreign_geometry, half_diagonals,
+    adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps, half_diagonals,
     match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, unlike_heights,
     within_reach,
 )
-from ltc_cli.pipeline.integration import (
-    fuse_scores, integrate_box, label_weight, moved_elsewhere, stale_weight, takes_in,
-)
+from ltc_cli.pipeline.integration import fuse_scores
+from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, count_absence_views, found_again, in_view, new_view, non_detection_vectors,
@@ -49,7 +49,7 @@ class FrameResult:
     timings: dict = field(default_factory=dict)
 
 
-class Mapper(InstanceMerging):
+class Mapper(InstanceMerging, BoxIntegration):
     """Runs the four stages of LTC-Mapping frame after frame on a :class:`SemanticMap`."""
 
     def __init__(self, smap: SemanticMap, config: Settings, metric: Metric, policy: Policy, session: int = 0):
@@ -73,6 +73,7 @@ class Mapper(InstanceMerging):
         self._outgrow_turn = None if turn is None else np.radians(turn)
         self.rates = DetectionRates(smap, config["maintenance"])
         self._view = np.zeros(6)  # the camera's view of the frame being mapped (camera_view)
+        self._moves: dict[int, Box] = {}  # rows whose detection elsewhere awaits their old place seen empty
         v_empty = config["maintenance"]["v_other_seen_empty"]
         self._empty_vectors = non_detection_vectors(smap.classes, v_empty, None) if v_empty is not None else None
         # A policy without a removal rule of its own keeps the paper's: removed once `other` leads.
@@ -124,6 +125,7 @@ class Mapper(InstanceMerging):
         reads it (see ltc_cli/ingest/remote.py).
         """
         clock = clock or time.perf_counter
+        self._moves.clear()
         T_camera_map = invert_pose(T_map_camera)
         self._view = camera_view(T_map_camera)
 
@@ -174,6 +176,9 @@ class Mapper(InstanceMerging):
                 cols["n_clear"][row] += 1
                 cols["n_clear_det"][row] += int(hit)
             count_absence_views(cols, rows, clear_absent, matched, seen_through, self.session)
+            for row in set(rows[clear_absent & seen_through].tolist()) & set(self._moves):
+                self.map.objects.set_box(row, self._moves[row])
+                self.index.insert(row, self._moves[row].center, self._moves[row].size)
             for row, through in zip(rows[missed], empty[missed]):
                 res.non_detections += 1
                 res.removed += self._non_detection(int(row), empty_vectors if through else vectors, frame_index,
@@ -332,54 +337,6 @@ class Mapper(InstanceMerging):
         self._count_view(row)
         self._log(frame_index, frame_key, "created", row + 1)
         return row
-
-    def _integrate(self, row, det_box: Box, s_det, frame_index, frame_key) -> None:
-        """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3."""
-        t = self.map.objects
-        self.rates.touch(row)
-        i_cfg = self.cfg["integration"]
-        obj = t.box(row)
-        if self._foreign(s_det, t.scores[row], det_box, obj):
-            new = obj  # the class evidence fuses; the geometry of a different object does not
-        elif i_cfg["stale_partial_moves"] and moved_elsewhere(det_box, obj, t.last_session[row] < self.session):
-            new = det_box  # the object was moved: its old box is where it was, the detection where it is
-        else:
-            w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
-            new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
-            if int(top_class(s_det)) == int(top_class(t.scores[row])):
-                new = self._outgrown(det_box, obj, 1.0, w_obj, int(top_class(s_det)), (row,), new)
-        t.set_box(row, new)
-        w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
-                         int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
-        t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], w)  # eq. 3
-        t.cols["n_det"][row] += 1
-        self._seen(row, frame_index)
-        self._count_view(row)
-        self.index.insert(row, new.center, new.size)
-        self._log(frame_index, frame_key, "updated", row + 1)
-
-    def _outgrown(self, obs: Box, obj: Box, w_obs: float, w_obj: float, top: int, rows, plain: Box) -> Box:
-        """``plain`` (the paper's box of ``obs`` integrated into ``obj``, both of class ``top``), or
-        the box ``partial_outgrow`` grows from a partial one reaching beyond a Defined one, unless
-        that box takes in an active object of another class (:func:`takes_in`); ``rows`` are the
-        objects being shaped."""
-        outgrow = self._outgrow[top]
-        if outgrow is None or obs.defined == obj.defined:
-            return plain
-        grown = integrate_box(obs, obj, w_obs, w_obj, self.cfg["integration"]["erosion"],
-                              self.cfg["modeling"]["min_extent"], outgrow, self._outgrow_turn)
-        if np.array_equal(grown.size, plain.size) and np.array_equal(grown.center, plain.center):
-            return plain
-        t, r = self.map.objects, float(np.hypot(*grown.size[:2])) / 2
-        near = self.index.query(grown.center[0] - r, grown.center[0] + r, grown.center[1] - r, grown.center[1] + r)
-        near = near[(t.status[near] == ACTIVE) & ~np.isin(near, rows)]
-        near = near[top_class(t.scores[near]) != top]
-        return plain if takes_in(grown, plain, t.center[near], t.yaw[near], t.size[near]) else grown
-
-    def _foreign(self, s_a, s_b, box_a: Box, box_b: Box) -> bool:
-        """True when box a must not reshape box b: another top class and a dissimilar volume."""
-        return foreign_geometry(int(top_class(s_a)), int(top_class(s_b)), box_a.size, box_b.size,
-                                self.cfg["association"]["other_class_volume_ratio"])
 
     def _non_detection(self, row, vectors, frame_index, frame_key) -> bool:
         """Fuse a non-detection into ``row`` (eqs. 3-4, ``vectors`` (C, C+1) by class); remove it

@@ -46,7 +46,8 @@ class InstanceMerging:
         t = self.map.objects
         vol = np.prod(t.size[rows], axis=1)
         pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"],
-                            established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None)
+                            established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None,
+                            low=a_cfg["stand_low"])
         merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
         for keep, drop in merges:
             keep, drop = int(rows[keep]), int(rows[drop])
@@ -73,7 +74,8 @@ class InstanceMerging:
         b_old, b_new = t.box(older), t.box(newer)
         w_old, w_new = self._merge_weights(older, newer)
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
-                                    i_cfg["erosion"], self.cfg["modeling"]["min_extent"])
+                                    i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
+                                    part_volume=i_cfg["defined_part_volume"])
         top = int(top_class(t.scores[older]))
         if int(top_class(t.scores[newer])) == top:
             box = self._outgrown(b_new, b_old, w_new, w_old, top, (older, newer), box)
