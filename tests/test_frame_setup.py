@@ -259,7 +259,7 @@ def test_tum_fr1_rpy_up_is_the_desk_normal():
 
 
 def test_sample_positions_by_hand():
-    from ltc_cli.ingest.frame_setup import sample_positions
+    from ltc_cli.ingest.sampling import sample_positions
 
     # 6 of 232: i * 231 // 5 for i = 0, 1, 2 and their mirrors 231 - p.
     assert sample_positions(232, 6) == [0, 46, 92, 139, 185, 231]

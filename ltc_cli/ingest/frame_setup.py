@@ -27,9 +27,10 @@ from typing import Sequence
 
 import numpy as np
 
-from ltc_cli.errors import FrameError, RecordingError
+from ltc_cli.errors import RecordingError
 from ltc_cli.geometry.camera import backproject, rotation_between, transform
-from ltc_cli.types import FrameRef, Recording
+from ltc_cli.ingest.sampling import sample_frames_of
+from ltc_cli.types import Recording
 
 # Planes whose normal is further than this from the cameras' guess are never floor: the guess leans
 # by the cameras' mean pitch, which reaches 40 degrees for a camera looking down at a desk.
@@ -60,7 +61,7 @@ REFINE_PASSES = 2
 # Frames sampled when a recording asks for its up axis to be estimated (else SAMPLE_FRAMES: the
 # floor's height alone needs few).
 UP_SAMPLE_FRAMES = 24
-SAMPLE_FRAMES = 6  # even: exactly this many positions (sample_positions)
+SAMPLE_FRAMES = 6  # even: exactly this many positions (sampling.sample_positions)
 # Depth readings outside this range are mostly noise (too near) or too sparse to hold a plane.
 DEPTH_RANGE_M = (0.2, 6.0)
 
@@ -330,56 +331,6 @@ def estimate_floor_z(points_z: np.ndarray, band: float = 0.05, min_share: float 
     return float(np.median(z[near]))
 
 
-def _hand_out_once(frame, load):
-    """A FrameRef.load that returns ``frame`` (already loaded) the first time, then loads anew."""
-    box = [frame]
-
-    def load_once():
-        return box.pop() if box else load()
-
-    return load_once
-
-
-def sample_positions(n_frames: int, n: int) -> list[int]:
-    """n positions in 0..n_frames-1 (all when there are fewer frames; n - 1 when n is odd and there is
-    no middle frame), evenly spread from the first to the last, the same set
-    whichever way the frames are listed: a position p is taken exactly when n_frames - 1 - p is.
-
-    The up axis and the floor are estimated from these frames; a recording read backwards (or by
-    another reader that lists it the other way round) must get the same map frame, or its map and
-    the forward pass's disagree by the difference of two estimates (tum-fr1-rpy: 0.96 degrees with
-    5 frames taken from the front)."""
-    if n_frames <= 0 or n <= 0:
-        return []
-    if n >= n_frames:
-        return list(range(n_frames))
-    if n == 1:
-        return [(n_frames - 1) // 2]
-    half = {i * (n_frames - 1) // (n - 1) for i in range(n // 2)}
-    if n % 2 and n_frames % 2:
-        half.add((n_frames - 1) // 2)  # the middle frame, when there is one (else n - 1 positions)
-    return sorted(half | {n_frames - 1 - p for p in half})
-
-
-def _sample_frames(rec: Recording, n: int) -> list:
-    """Up to n readable frames spread over the recording (``sample_positions``).
-
-    Each sampled frame's ref in ``rec.frames`` is replaced by one that hands this loaded frame out
-    on its next load, so that the ingest (or the rrd export) after the set-up does not decode these
-    frames a second time."""
-    out = []
-    for i in sample_positions(len(rec.frames), n):
-        ref = rec.frames[i]
-        try:
-            frame = ref.load()
-        except FrameError:
-            continue
-        out.append(frame)
-        if isinstance(rec.frames, list):
-            rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load))
-    return out
-
-
 def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None):
     """(R_up (3, 3), floor_z or None) of a recording.
 
@@ -393,7 +344,7 @@ def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None)
     if sample_frames is None:
         sample_frames = UP_SAMPLE_FRAMES if estimating else SAMPLE_FRAMES
     # In key order, so that the estimate is the same whichever way the reader lists the frames.
-    frames = sorted(_sample_frames(rec, sample_frames), key=lambda f: f.key)
+    frames = sorted(sample_frames_of(rec, sample_frames), key=lambda f: f.key)
     if rec.up is None:
         R_up = np.eye(3)
     elif estimating:
