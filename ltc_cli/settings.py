@@ -67,6 +67,7 @@ class AssociationSettings(TypedDict):
     tentative_reshapes: bool
     stand_margin: float
     stand_low: Optional[float]
+    part_label_share: Optional[float]
     merge_containment: Optional[float]
     merge_current_box: bool
     merge_id_by_label: bool

@@ -50,3 +50,27 @@ def test_a_part_does_not_replace_the_partial_box():
                                 part_volume=0.1)
     assert not box.defined and np.all(box.size >= CHAIR.size - 0.02 - 1e-9)
     np.testing.assert_allclose(scores, [0.72, 0.28])  # eq. 3 generalised: the weighted mean
+
+
+def test_labelled_part_pairs_by_hand():
+    """association.part_label_share: the chair's back (BACK, 4.42 % of CHAIR's volume, all inside)
+    whose class vector says tv 0.52 / chair 0.38 is the chair under another label: a pair with
+    0.35, keyed 1 - 0.38 = 0.62. With chair 0.34, or volume share 0.04, or the rule off, none. A cup
+    inside the chair's box (a cup on a table) with nothing of the chair in its evidence: none."""
+    from ltc_cli.geometry.boxes import Boxes
+    from ltc_cli.pipeline.deduplication import labelled_part_pairs
+
+    TV, CHAIR_CLASS, CUP = 0, 1, 2
+    cup = Box(np.array([-1.2, 0.1, 0.6]), 0.0, np.array([0.1, 0.1, 0.12]), np.ones(8, bool), True)
+    b = Boxes(np.stack([CHAIR.center, BACK.center, cup.center]), np.zeros(3), np.stack([CHAIR.size, BACK.size, cup.size]),
+              np.ones((3, 8), bool))
+    top = np.array([CHAIR_CLASS, TV, CUP])
+    scores = np.array([[0.02, 0.96, 0.0, 0.02], [0.52, 0.38, 0.0, 0.10], [0.0, 0.0, 0.9, 0.1]])
+    pairs = labelled_part_pairs(b, top, scores, 0.35, 0.1)
+    assert [(a, c) for _, a, c in pairs] == [(0, 1)]
+    assert pairs[0][0] == pytest.approx(0.62)
+    weaker = scores.copy()
+    weaker[1, CHAIR_CLASS] = 0.34
+    assert labelled_part_pairs(b, top, weaker, 0.35, 0.1) == []
+    assert labelled_part_pairs(b, top, scores, 0.35, 0.04) == []
+    assert labelled_part_pairs(b, top, scores, None, 0.1) == []

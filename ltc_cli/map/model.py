@@ -22,7 +22,7 @@ ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 # Columns added after format 1: a map written before them reads them as zeros.
 ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session", "clear_since_det",
-                           "det_view", "det_views", "through_since_det", "n_clear_det"})
+                           "det_view", "det_views", "through_since_det", "n_clear_det", "det_span"})
 
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
@@ -61,6 +61,10 @@ COLUMNS = {
     # many such distinct views detected it (maintenance.min_detection_views).
     "det_view": ((6,), np.float64),
     "det_views": ((), np.int64),
+    # The least and greatest camera position, then forward axis, along x, y, z and the horizontal
+    # diagonals (5 + 5 + 5 + 5), over the views that detected it: whether two of them lie apart,
+    # whatever their order (maintenance.span_views).
+    "det_span": ((20,), np.float64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),
     "first_frame": ((), np.int64),

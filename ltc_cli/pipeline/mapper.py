@@ -27,7 +27,7 @@ from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, count_absence_views, found_again, in_view, new_view, non_detection_vectors,
-    other_leads, seen_empty, tentative, unconfirmed, view_counts,
+    other_leads, seen_empty, span_views, tentative, unconfirmed, view_counts, widen_span,
 )
 from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, unconfirmed_detail
 from ltc_cli.pipeline.rates import DetectionRates
@@ -277,7 +277,8 @@ class Mapper(InstanceMerging, BoxIntegration):
         t, m_cfg = self.map.objects, self.cfg["maintenance"]
         min_views = m_cfg["min_detection_views"]
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
-        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, t.det_views[rows], min_views)]
+        seen_from = self._confirm_views()
+        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, seen_from[rows], min_views)]
         absent = m_cfg["absent_after_views"]
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
@@ -296,7 +297,7 @@ class Mapper(InstanceMerging, BoxIntegration):
         for row in rows:
             self._remove(row, frame_index, frame_key,
                          unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share,
-                                            t.det_views[row], min_views))
+                                            seen_from[row], min_views))
         self.rates.settle()
         return len(rows) + gone
 
@@ -317,10 +318,19 @@ class Mapper(InstanceMerging, BoxIntegration):
         cols["clear_since_det"][row] = 0
         cols["through_since_det"][row] = 0
 
+    def _confirm_views(self) -> np.ndarray:
+        """(N,) distinct views of detection per object for min_detection_views: by the span of the
+        views (order-free) when two are asked for, else as counted one after another."""
+        t, m_cfg = self.map.objects, self.cfg["maintenance"]
+        if m_cfg["min_detection_views"] is None or m_cfg["min_detection_views"] > 2:
+            return t.det_views
+        return span_views(t.det_span, t.det_views, m_cfg["confirm_min_move"], m_cfg["confirm_min_turn"])
+
     def _count_view(self, row: int) -> None:
         """A detection of ``row`` from a new view (confirm_min_move / confirm_min_turn since the
         last counted one) adds one to its distinct views of detection."""
         m_cfg, cols = self.cfg["maintenance"], self.map.objects.cols
+        cols["det_span"][row] = widen_span(cols["det_span"][row], self._view, cols["det_views"][row] == 0)
         if new_view(cols["det_view"][row:row + 1], self._view, m_cfg["confirm_min_move"], m_cfg["confirm_min_turn"])[0]:
             cols["det_views"][row] += 1
             cols["det_view"][row] = self._view

@@ -15,7 +15,7 @@ from ltc_cli.pipeline.deduplication import greedy_merges, label_survivor, merge_
 from ltc_cli.pipeline.integration import (
     confirmed_side, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
-from ltc_cli.pipeline.maintenance import tentative
+from ltc_cli.pipeline.maintenance import tentative, union_span
 
 
 class InstanceMerging:
@@ -30,7 +30,8 @@ class InstanceMerging:
             return 0
         a_cfg = self.cfg["association"]
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
-                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session)
+                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session,
+                            t.scores[rows], self.cfg["integration"]["defined_part_volume"])
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
@@ -115,6 +116,9 @@ class InstanceMerging:
         t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet", "n_clear", "n_clear_det"):
             t.cols[col][keep] += t.cols[col][drop]
+        if t.det_views[drop] > 0:
+            span = t.det_span[drop] if t.det_views[keep] == 0 else union_span(t.det_span[keep], t.det_span[drop])
+            t.cols["det_span"][keep] = span
         t.cols["det_views"][keep] = max(t.det_views[keep], t.det_views[drop])
         if (t.first_session[drop], t.first_frame[drop]) < (t.first_session[keep], t.first_frame[keep]):
             t.cols["first_session"][keep] = t.first_session[drop]
