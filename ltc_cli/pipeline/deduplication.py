@@ -158,13 +158,14 @@ def labelled_part_pairs(boxes: Boxes, top: np.ndarray, scores: np.ndarray | None
     if min_label is None or scores is None or m < 2:
         return []
     vol = np.prod(boxes.size, axis=1)
+    # [a, b]: a small enough, of another class, and saying b's class enough; then the boxes, by b.
+    said = np.asarray(scores)[:, np.asarray(top)] >= min_label
+    cand = (vol[:, None] < volume_share * vol[None, :]) & (top[:, None] != top[None, :]) & said
     out = []
-    for b in range(m):  # b the larger one
-        small = np.flatnonzero((vol < volume_share * vol[b]) & (top != top[b]) & (scores[:, top[b]] >= min_label))
-        if small.size == 0:
-            continue
-        within = shares_inside(boxes.row(b, False), boxes.center[small], boxes.yaw[small], boxes.size[small])
-        out.extend((1.0 - float(scores[a, top[b]]), min(int(a), b), max(int(a), b))
+    for b in np.flatnonzero(cand.any(axis=0)):  # b the larger one
+        small = np.flatnonzero(cand[:, b])
+        within = shares_inside(boxes.row(int(b), False), boxes.center[small], boxes.yaw[small], boxes.size[small])
+        out.extend((1.0 - float(scores[a, top[b]]), min(int(a), int(b)), max(int(a), int(b)))
                    for a, w in zip(small, within) if w >= inside)
     return sorted(out)
 
