@@ -77,3 +77,25 @@ def test_maps_without_spans_keep_their_counts():
     """An object counted before ltc kept spans (all zeros) keeps its count; none counted: 0."""
     out = span_views(np.zeros((2, 12)), np.array([3, 0]), 0.15, 10.0)
     assert out.tolist() == [3, 0]
+
+
+def test_the_span_is_kept_in_the_map_and_old_maps_read_zeros(tmp_path):
+    """det_span round-trips through the map file; a map written before it (the column deleted
+    here) loads with zeros, and its objects keep their counted views."""
+    import h5py
+
+    from ltc_cli.map.store import load_map, save_map
+    from tests.test_store import small_map
+
+    smap = small_map()
+    span = span_of([view(0.0), view(0.16)])
+    smap.objects.cols["det_span"][0] = span
+    smap.objects.cols["det_views"][0] = 2
+    path = tmp_path / "m.h5"
+    save_map(smap, path)
+    np.testing.assert_array_equal(load_map(path).objects.det_span[0], span)
+    with h5py.File(path, "a") as f:
+        del f["objects/det_span"]
+    old = load_map(path)
+    np.testing.assert_array_equal(old.objects.det_span[0], np.zeros(20))
+    assert span_views(old.objects.det_span, old.objects.det_views, 0.15, 10.0).tolist() == [2]
