@@ -57,7 +57,8 @@ class BoxIntegration:
         if outgrow is None or obs.defined == obj.defined:
             return plain
         grown = integrate_box(obs, obj, w_obs, w_obj, self.cfg["integration"]["erosion"],
-                              self.cfg["modeling"]["min_extent"], outgrow, self._outgrow_turn)
+                              self.cfg["modeling"]["min_extent"], outgrow, self._outgrow_turn,
+                              part_volume=self.cfg["integration"]["defined_part_volume"])
         if np.array_equal(grown.size, plain.size) and np.array_equal(grown.center, plain.center):
             return plain
         t, r = self.map.objects, float(np.hypot(*grown.size[:2])) / 2
