@@ -146,7 +146,8 @@ def _ransac_planes(
 ) -> list[tuple[np.ndarray, float, int]]:
     """Sequential RANSAC for near-horizontal planes: [(n (3,) agreeing with guess, d, support)].
 
-    Each round finds the best-supported plane whose normal is within ``max_tilt_deg`` of the guess, refits it by least squares, removes its inliers and looks again, so the floor and the
+    Each round finds the best-supported plane whose normal is within ``max_tilt_deg`` of the
+    guess, refits it by least squares, removes its inliers and looks again, so the floor and the
     table tops come out as separate planes.
     """
     cos_max = np.cos(np.radians(max_tilt_deg))

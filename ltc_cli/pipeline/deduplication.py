@@ -15,7 +15,7 @@ from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_ar
 from ltc_cli.pipeline.association import (
     footprint_gaps, ground_shares, half_diagonals, pairwise_containment, similar_volume, thresholds_for, unlike_heights,
 )
-from ltc_cli.pipeline.integration import shares_inside
+from ltc_cli.pipeline.integration import PART_INSIDE_SHARE, shares_inside
 
 
 def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other: float,
@@ -143,7 +143,7 @@ def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_vo
 
 
 def labelled_part_pairs(boxes: Boxes, top: np.ndarray, scores: np.ndarray | None, min_label: float | None,
-                        volume_share: float, inside: float = 0.9) -> list[tuple[float, int, int]]:
+                        volume_share: float, inside: float = PART_INSIDE_SHARE) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view, top classes (M,), class vectors (M, C+1)) in which a
     small object is a part of a larger one of another top class by both place and evidence: under
     ``volume_share`` of its volume, ``inside`` of it within the larger box, and its own class

@@ -224,10 +224,8 @@ def widen_span(span: np.ndarray, view: np.ndarray, empty: bool) -> np.ndarray:
     coordinate (the camera position along SPAN_AXES, then the forward axis along them), with one more
     view (6,) (camera_view); ``empty``: no view yet."""
     c = _span_coords(view)
-    if empty:
-        return np.concatenate([c, c])
-    n = len(c)
-    return np.concatenate([np.minimum(span[:n], c), np.maximum(span[n:], c)])
+    one = np.concatenate([c, c])  # the span of this view alone
+    return one if empty else union_span(span, one)
 
 
 def union_span(a: np.ndarray, b: np.ndarray) -> np.ndarray:
