@@ -147,3 +147,22 @@ def test_stage_1_never_calls_a_bed_box_shorter_than_any_bed_whole(half_width, bo
     assert out.modeled.boxes.size[0, :2].max() == pytest.approx(2 * half_width, abs=0.03)
     assert out.modeled.defined.tolist() == [defined]
     assert SEATS[int(top_class(out.scores[0]))] == "bed"
+
+
+@pytest.mark.parametrize("half_width, defined", [
+    (0.35, False),  # a whole-looking 0.7 m "dining table": an end of one (no table seats two under 0.8 m)
+    (0.5, True),    # 1.0 m: whole
+])
+def test_default_never_calls_a_table_box_shorter_than_any_table_whole(half_width, defined):
+    """With the default settings, a fully visible block detected as dining table 0.9 is Defined by
+    its corners only when it is at least 0.8 m long (modeling.defined_min_width)."""
+    classes = ["dining table", "chair"]
+    cfg = defaults()
+    assert cfg["modeling"]["defined_min_width"]["dining table"] == 0.8
+    cfg["modeling"].update(floor_classes=[], class_depth={}, thin_extent=0.01)
+    depth, masks = render([(2.0, 2.3, -half_width, half_width, 0.2, 0.8)], wall_x=4.0)
+    out = model_frame(masks, [np.array([0.9, 0.05, 0.05])], depth, T_world_camera(), INTR, (0.3, 6.0), cfg,
+                      ClassFlags.from_settings(classes, cfg))
+    assert out.modeled.boxes.visible.all()
+    assert out.modeled.boxes.size[0, :2].max() == pytest.approx(2 * half_width, abs=0.03)
+    assert out.modeled.defined.tolist() == [defined]
