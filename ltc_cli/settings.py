@@ -80,6 +80,7 @@ class IntegrationSettings(TypedDict):
     unassigned_score: str
     relabel_weight: str
     stale_box_weight: Optional[float]
+    stale_label_weight: Optional[float]
     stale_partial_moves: Union[bool, str]
     defined_part_volume: Optional[float]
     partial_outgrow: dict[str, float | None] | None

@@ -39,8 +39,11 @@ class BoxIntegration:
             if int(top_class(s_det)) == int(top_class(t.scores[row])):
                 new = self._outgrown(det_box, obj, 1.0, w_obj, int(top_class(s_det)), (row,), new)
         t.set_box(row, new)
-        w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]),
-                         int(top_class(s_det)) == int(top_class(t.scores[row])), i_cfg["relabel_weight"])
+        same = int(top_class(s_det)) == int(top_class(t.scores[row]))
+        w = label_weight(self._weight(row), float(t.n_det[row] + t.n_nondet[row]), same, i_cfg["relabel_weight"])
+        # An earlier session's label, against this session's first detection that says otherwise,
+        # weighs at most stale_label_weight: a weak label re-opens, a clear one stays.
+        w = stale_weight(w, not same and t.last_session[row] < self.session, i_cfg["stale_label_weight"])
         t.cols["scores"][row] = fuse_scores(s_det, t.scores[row], w)  # eq. 3
         t.cols["n_det"][row] += 1
         self._seen(row, frame_index)
