@@ -238,9 +238,10 @@ def stale_side(keep_current: bool, drop_current: bool) -> str | None:
 
 
 def stale_weight(weight: float, stale: bool, cap: float | None) -> float:
-    """The weight of an object's box against a detection: at most ``cap`` when the object was last
-    detected in an earlier session (``stale``; None: no cap). Its first detection of a session
-    then moves a box that says where the object was towards where it is now."""
+    """The weight of an object's box (or class vector) against a detection: at most ``cap`` when
+    ``stale``, the object last detected in an earlier session (None: no cap). Its first detection
+    of a session then moves a box that says where the object was towards where it is now (and,
+    with ``integration.stale_label_weight``, re-opens a label decided by a small margin)."""
     return weight if cap is None or not stale else min(weight, float(cap))
 
 
