@@ -97,11 +97,11 @@ def add_strict(total: dict, res: dict, kept: dict | None) -> None:
         total["tracked"] = total.get("tracked", 0) + kept["tracked"]
 
 
-def _pct(num, den) -> str:
+def percent(num, den) -> str:
     return "n/a" if not den else f"{num / den:.1%}"
 
 
-def _r(num, den) -> str:
+def ratio(num, den) -> str:
     return "n/a" if not den else f"{num / den:.3f}"
 
 
@@ -114,12 +114,12 @@ def strict_row(name: str, t: dict, s: dict) -> str:
     objects deleted by maintenance, ids kept since the lap before (n/a on lap 1)."""
     a, b = s["0.25"], s["0.5"]
     n = t["num_map"]
-    half = "/".join(_r(x, y) for x, y in ((b["tp"], b["tp"] + b["fp"]), (b["tp"], b["tp"] + b["fn"]),
+    half = "/".join(ratio(x, y) for x, y in ((b["tp"], b["tp"] + b["fp"]), (b["tp"], b["tp"] + b["fn"]),
                                           (2 * b["tp"], 2 * b["tp"] + b["fp"] + b["fn"])))
-    return (f"{name:<28}{a['tp']:>5}{a['fp']:>5}{a['fn']:>5} {_r(a['tp'], a['tp'] + a['fp']):>6} "
-            f"{_r(a['tp'], a['tp'] + a['fn']):>6} {_r(a['tp'], a['tp'] + a['fn_seen']):>7} "
-            f"{_r(2 * a['tp'], 2 * a['tp'] + a['fp'] + a['fn']):>6}  {half:<20}{_pct(t['duplicates'], n):>6} "
-            f"{_pct(t['ghosts'], n):>6} {_pct(s['deleted'], s['present']):>8} {_pct(s.get('kept', 0), s.get('tracked', 0)):>9}")
+    return (f"{name:<28}{a['tp']:>5}{a['fp']:>5}{a['fn']:>5} {ratio(a['tp'], a['tp'] + a['fp']):>6} "
+            f"{ratio(a['tp'], a['tp'] + a['fn']):>6} {ratio(a['tp'], a['tp'] + a['fn_seen']):>7} "
+            f"{ratio(2 * a['tp'], 2 * a['tp'] + a['fp'] + a['fn']):>6}  {half:<20}{percent(t['duplicates'], n):>6} "
+            f"{percent(t['ghosts'], n):>6} {percent(s['deleted'], s['present']):>8} {percent(s.get('kept', 0), s.get('tracked', 0)):>9}")
 
 
 def map_house(h: Path, metric: str, policy: str, laps: int, args, cal) -> list:

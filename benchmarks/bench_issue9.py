@@ -31,10 +31,10 @@ PAPER = Path(__file__).resolve().parent.parent / "docs" / "paper.yaml"
 def sets(five_laps: bool) -> list[tuple]:
     """(label, scene, first seed, laps, profile, config, extra overrides) of each run."""
     out = [
-        ("small 101-104", "small", 101, 2, "realistic", None, ()),
-        ("medium 101-104", "medium", 101, 2, "realistic", None, ()),
-        ("held-out small 201-204", "small", 201, 2, "realistic", None, ()),
-        ("held-out medium 201-204", "medium", 201, 2, "realistic", None, ()),
+        ("small", "small", 101, 2, "realistic", None, ()),
+        ("medium", "medium", 101, 2, "realistic", None, ()),
+        ("held-out small", "small", 201, 2, "realistic", None, ()),
+        ("held-out medium", "medium", 201, 2, "realistic", None, ()),
         ("small, static policy", "small", 101, 2, "realistic", None, ("maintenance.policy=static",)),
         ("medium, static policy", "medium", 101, 2, "realistic", None, ("maintenance.policy=static",)),
         ("small, docs/paper.yaml", "small", 101, 2, "realistic", str(PAPER), ()),
@@ -60,21 +60,13 @@ def run_set(spec: tuple, houses: int, overrides: tuple) -> list[tuple[dict, dict
     return totals
 
 
-def ratio(num: int, den: int) -> str:
-    return "n/a" if not den else f"{num / den:.3f}"
-
-
-def percent(num: int, den: int) -> str:
-    return "n/a" if not den else f"{num / den:.1%}"
-
-
 def table_row(label: str, t: dict, s: dict) -> str:
     """| label | P / R (IoU > 0.25) | dup | ghosts | deleted | ids kept | of one lap."""
     a, n = s["0.25"], t["num_map"]
-    any_overlap = f"{ratio(t['tp'], t['tp'] + t['fp'])} / {ratio(t['tp'], t['tp'] + t['fn'])}"
-    strict = f"{ratio(a['tp'], a['tp'] + a['fp'])} / {ratio(a['tp'], a['tp'] + a['fn'])}"
-    return (f"| {label} | {any_overlap} ({strict}) | {percent(t['duplicates'], n)} | {percent(t['ghosts'], n)} | "
-            f"{percent(s['deleted'], s['present'])} | {percent(s.get('kept', 0), s.get('tracked', 0))} |")
+    any_overlap = f"{acc.ratio(t['tp'], t['tp'] + t['fp'])} / {acc.ratio(t['tp'], t['tp'] + t['fn'])}"
+    strict = f"{acc.ratio(a['tp'], a['tp'] + a['fp'])} / {acc.ratio(a['tp'], a['tp'] + a['fn'])}"
+    return (f"| {label} | {any_overlap} ({strict}) | {acc.percent(t['duplicates'], n)} | {acc.percent(t['ghosts'], n)} | "
+            f"{acc.percent(s['deleted'], s['present'])} | {acc.percent(s.get('kept', 0), s.get('tracked', 0))} |")
 
 
 def main() -> int:
@@ -94,7 +86,7 @@ def main() -> int:
     print("| --- | --- | --- | --- | --- | --- |")
     for spec, totals in zip(specs, results):
         if spec[3] == 2:
-            print(table_row(spec[0], *totals[1]))
+            print(table_row(f"{spec[0]} {spec[2]}-{spec[2] + args.houses - 1}", *totals[1]))
     for spec, totals in zip(specs, results):
         if spec[3] > 2:
             print()
