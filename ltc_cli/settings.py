@@ -119,6 +119,10 @@ class MaintenanceSettings(TypedDict):
     absent_through_share: float
     through_margin: float
     nondet_through_share: Optional[float]
+    occupied_margin: Optional[float]
+    occupied_lift: float
+    occupied_share: float
+    occupied_max_width: float
     spare_frames: Optional[int]
     hidden_by_whole_box: Union[bool, str]
     hide_needs_depth: Union[bool, str]

@@ -11,7 +11,7 @@ import numpy as np
 
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.camera import project, transform
-from ltc_cli.pipeline.visibility import pixel_counts
+from ltc_cli.pipeline.visibility import occupied_pixels, pixel_counts
 from ltc_cli.types import Intrinsics
 
 
@@ -73,6 +73,32 @@ def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, int
                           for share in (m_cfg["min_visible_share"], m_cfg["through_visible_share"]))
     vis_absent = counts[3] if whole == "absence" else vis_px
     return ViewCounts(vis_px, need, empty_px, vis_absent, counts[-1] if through else None, need_through)
+
+
+def stands_there(occupied_px: np.ndarray, visible_px: np.ndarray, share: float) -> np.ndarray:
+    """(M,) bool: objects whose grown box holds observed depth for at least ``share`` of their
+    visible pixels (:func:`~ltc_cli.pipeline.visibility.occupied_pixels`; 0 for those not asked)."""
+    occupied_px = np.asarray(occupied_px, dtype=float)
+    return (occupied_px > 0) & (occupied_px >= share * np.asarray(visible_px, dtype=float))
+
+
+def held_by_depth(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, intr: Intrinsics,
+                  visible_px: np.ndarray, m_cfg: dict) -> np.ndarray:
+    """(M,) bool: small things (footprint's longer side at most ``occupied_max_width``) that the
+    depth shows standing where their box is, give or take the localiser's drift
+    (``occupied_margin``; None: none). A small thing's box lies beside the thing in another view's
+    frame: its rays pass the thing and look "seen through" while the thing's own surface still
+    ends within a few centimetres of the box. Neither a miss (eq. 4) nor the absence rule's "seen
+    through" counts for them. Depth past the box's middle by ``through_margin`` is where the rays
+    that saw through it end (a wall the box touches), not the thing. Larger things overlap their
+    boxes whatever the drift, and their neighbours (a table behind a chair) stand within the margin."""
+    if m_cfg["occupied_margin"] is None or len(boxes) == 0:
+        return np.zeros(len(boxes), dtype=bool)
+    small = np.flatnonzero(boxes.size[:, :2].max(axis=1) <= m_cfg["occupied_max_width"])
+    occupied = np.zeros(len(boxes))
+    occupied[small] = occupied_pixels(boxes.take(small), T_map_camera, depth_m, intr, m_cfg["ray_step"],
+                                      m_cfg["occupied_margin"], m_cfg["occupied_lift"], m_cfg["through_margin"])
+    return stands_there(occupied, visible_px, m_cfg["occupied_share"])
 
 
 def count_absence_views(cols: dict, rows: np.ndarray, clear_absent: np.ndarray, matched: np.ndarray,

@@ -26,8 +26,8 @@ from ltc_cli.pipeline.integration import fuse_scores
 from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.maintenance import (
-    absent_in_session, camera_view, count_absence_views, found_again, in_view, new_view, non_detection_vectors,
-    other_leads, seen_empty, span_views, tentative, unconfirmed, view_counts, widen_span,
+    absent_in_session, camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view,
+    non_detection_vectors, other_leads, seen_empty, span_views, tentative, unconfirmed, view_counts, widen_span,
 )
 from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, unconfirmed_detail
 from ltc_cli.pipeline.rates import DetectionRates
@@ -166,8 +166,8 @@ class Mapper(InstanceMerging, BoxIntegration):
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty, clear_absent, seen_through = self._missed(rows, matched, T_map_camera, depth_m,
-                                                                            intr, depth_range, frame_index)
+            missed, clear, empty, clear_absent, seen_through, held = self._missed(
+                rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index)
             vectors = self.rates.vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
@@ -175,7 +175,9 @@ class Mapper(InstanceMerging, BoxIntegration):
                 self.rates.touch(int(row))
                 cols["n_clear"][row] += 1
                 cols["n_clear_det"][row] += int(hit)
-            count_absence_views(cols, rows, clear_absent, matched, seen_through, self.session)
+            count_absence_views(cols, rows, clear_absent, matched, seen_through & ~held, self.session)
+            # A stale box moves to a detection nearby when its place is seen through, whatever stands
+            # within the drift margin: that may be the thing itself, where the detection is.
             for row in set(rows[clear_absent & seen_through].tolist()) & set(self._moves):
                 self.map.objects.set_box(row, self._moves[row])
                 self.index.insert(row, self._moves[row].center, self._moves[row].size)
@@ -232,16 +234,19 @@ class Mapper(InstanceMerging, BoxIntegration):
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
-        """(missed, clear, empty, clear for the absence rule, seen through for it), each (M,) bool over
-        in-view rows: which get a non-detection, as the maintenance policy decides; which were
-        clearly visible (enough pixels to say so); which of the missed ones the depth showed to be
-        free space; which were clearly visible by ``hidden_by_whole_box`` ("absence": by the
-        whole-box rule); and which of those the camera saw through (absent_through_share of the
-        pixels past the box's middle)."""
+        """(missed, clear, empty, clear for the absence rule, seen through for it, held), each (M,)
+        bool over in-view rows: which get a non-detection, as the maintenance policy decides; which
+        were clearly visible (enough pixels to say so); which of the missed ones the depth showed to
+        be free space; which were clearly visible by ``hidden_by_whole_box`` ("absence": by the
+        whole-box rule); which of those the camera saw through (absent_through_share of the pixels
+        past the box's middle); and which small things the depth shows standing within the drift
+        margin of their box (``held_by_depth``: neither a miss nor seen through for the absence rule)."""
         m_cfg = self.cfg["maintenance"]
+        boxes = self.map.objects.boxes(rows)
         vis_px, need, empty_px, vis_absent, through_px, need_through = view_counts(
-            self.map.objects.boxes(rows), T_map_camera, depth_m, intr, depth_range, m_cfg)
-        missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched
+            boxes, T_map_camera, depth_m, intr, depth_range, m_cfg)
+        held = held_by_depth(boxes, T_map_camera, depth_m, intr, vis_absent, m_cfg)
+        missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched & ~held
         if m_cfg["spare_frames"] is not None:
             t = self.map.objects
             missed &= ~found_again(t.first_session[rows], t.last_session[rows], t.last_frame[rows], self.session,
@@ -260,8 +265,8 @@ class Mapper(InstanceMerging, BoxIntegration):
             else np.zeros(len(rows), dtype=bool)
         # Where the camera saw through most of what it saw of the box, the depth says the place is
         # empty: that is no detector's silence, and a part of the box is enough to say so.
-        clear_absent = (vis_absent >= need) | (through & (vis_absent >= need_through))
-        return missed, vis_px >= need, empty, clear_absent, through
+        clear_absent = (vis_absent >= need) | (through & ~held & (vis_absent >= need_through))
+        return missed, vis_px >= need, empty, clear_absent, through, held
 
     def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
                           min_share: float | None = None) -> int:

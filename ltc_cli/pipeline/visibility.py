@@ -189,3 +189,40 @@ def pixel_counts(
 def visible_pixels(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range) -> np.ndarray:
     """The ``visible`` half of :func:`pixel_counts`: (M,) pixels."""
     return pixel_counts(boxes, T_map_camera, depth_m, intr, step, depth_tolerance, depth_range)[0]
+
+
+def occupied_pixels(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, step: int,
+                    margin: float, lift: float, past_middle: float | None = None) -> np.ndarray:
+    """(M,) pixels whose observed depth ends inside each box grown by ``margin`` metres on every
+    side but the bottom, which is raised by ``lift`` (what the box stands on is not in it), and,
+    with ``past_middle``, not beyond the camera depth of the box's centre by more than that.
+
+    Something stands where the box is, give or take the localiser's drift: a small thing's box
+    lies a few centimetres beside the thing in another view's frame, so its rays pass it and look
+    "seen through" while the thing's own surface ends inside the grown box. What lies past the
+    box's middle is where rays that saw through it end (a wall the box touches), not the thing."""
+    m = len(boxes)
+    if m == 0:
+        return np.zeros(0)
+    top = boxes.center[:, 2] + boxes.size[:, 2] / 2 + margin
+    bottom = boxes.center[:, 2] - boxes.size[:, 2] / 2 + lift
+    size = boxes.size.copy()
+    size[:, :2] += 2 * margin
+    size[:, 2] = np.maximum(top - bottom, 1e-3)
+    center = boxes.center.copy()
+    center[:, 2] = 0.5 * (top + bottom)
+    grown = Boxes(center, boxes.yaw, size, boxes.visible)
+    u, v = ray_grid(intr, step)
+    box, ray = box_ray_pairs(grown, T_map_camera, intr, step)
+    c, s, o_box, dirs_map = _box_frame(grown, T_map_camera, intr, u, v)
+    obs = depth_m[v.astype(int), u.astype(int)][ray]
+    d = dirs_map[ray]
+    dx = c[box] * d[:, 0] + s[box] * d[:, 1]
+    dy = -s[box] * d[:, 0] + c[box] * d[:, 1]
+    # The ray directions have z = 1 in the camera frame: obs * direction is the observed point.
+    p_box = np.stack([o_box[box, 0] + obs * dx, o_box[box, 1] + obs * dy, o_box[box, 2] + obs * d[:, 2]], -1)
+    inside = (obs > 0) & np.all(np.abs(p_box) <= size[box] / 2, axis=1)
+    if past_middle is not None:
+        middle_z = transform(invert_pose(T_map_camera), boxes.center)[:, 2]
+        inside &= obs <= middle_z[box] + past_middle
+    return np.bincount(box[inside], minlength=m) * float(step * step)
