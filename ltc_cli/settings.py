@@ -58,6 +58,7 @@ class AssociationSettings(TypedDict):
     partial_adjoin_gap: Optional[float]
     partial_adjoin_share: Optional[dict[str, float]]
     merge_other_class_iou: Optional[float]
+    merge_adjoining: bool
     merge_partial_defined_gap: Optional[float]
     merge_partial_defined_volume: float
     stand_gap: Optional[float]

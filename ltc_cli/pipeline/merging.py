@@ -31,7 +31,8 @@ class InstanceMerging:
         a_cfg = self.cfg["association"]
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
                             match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session,
-                            t.scores[rows], self.cfg["integration"]["defined_part_volume"])
+                            t.scores[rows], self.cfg["integration"]["defined_part_volume"],
+                            self._adjoin_share if a_cfg["merge_adjoining"] else None)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
