@@ -5,8 +5,11 @@ import numpy as np
 
 from ltc_cli import plugins
 from ltc_cli.config import defaults, load_config
-from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.pipeline.deduplication import adjoining_part_pairs, merge_pairs
+from ltc_cli.geometry.boxes import Box, Boxes
+from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
+from ltc_cli.pipeline.deduplication import adjoining_part_pairs, enclosed_part, merge_pairs
+from ltc_cli.pipeline.mapper import Mapper
+from tests.scene import INTR, T_world_camera, render
 
 TABLE, CHAIR = 0, 1
 SHARE = np.array([0.1, 0.0, 0.0])  # dining table 0.1, chair none, other none
@@ -35,11 +38,8 @@ def test_adjoining_part_pairs_by_hand():
     # A share of 0.25 of the 0.6 m sides reaches 0.15: 1 and 2 (0.12 apart) join; 0 and 2 (0.8
     # apart, 0.25 of 1.0 m) do not.
     assert [(a, b) for _, a, b in adjoining_part_pairs(scene(), TOP, defined, SHARE * 2.5, 0.05)] == [(0, 1), (1, 2)]
-    # A Defined piece takes in a partial one no larger (0: 0.6 m2, 1: 0.36 m2), not a larger one;
-    # two Defined pieces are two things.
-    defined[1] = True
-    assert adjoining_part_pairs(scene(), TOP, defined, SHARE, 0.05) == []
-    defined[:2] = [True, False]
+    # A Defined piece and a partial one are pieces too; two Defined pieces are two things.
+    defined[:2] = [False, True]
     assert [(a, b) for _, a, b in adjoining_part_pairs(scene(), TOP, defined, SHARE, 0.05)] == [(0, 1)]
     defined[:2] = [True, True]
     assert adjoining_part_pairs(scene(), TOP, defined, SHARE, 0.05) == []
@@ -56,3 +56,47 @@ def test_merge_pairs_takes_adjoining_pieces_by_the_settings():
         share = SHARE if a_cfg["merge_adjoining"] else None
         pairs = merge_pairs(boxes, TOP[:2], metric.distance, a_cfg, None, defined, first, 0, None, None, share)
         assert [(a, b) for _, a, b in pairs] == expected
+
+
+def test_enclosed_part_by_hand():
+    """The Defined piece is the part when its footprint is the smaller: 0.5 x 0.6 = 0.30 m2 against
+    0.9 x 0.78 = 0.70 m2; against 0.5 x 0.5 = 0.25 m2 it is the whole."""
+    def box(size, defined):
+        return Box(np.zeros(3), 0.0, np.array(size, float), np.ones(8, bool), defined)
+    end, rest, small = box((0.5, 0.6, 0.75), True), box((0.9, 0.78, 0.75), False), box((0.5, 0.5, 0.75), False)
+    assert enclosed_part(end, rest) and enclosed_part(rest, end)
+    assert not enclosed_part(end, small)
+
+
+# A table seen from its end: a Defined end piece x 2.0..2.6, y -0.2..0.3 (0.30 m2) and a partial box
+# of the rest x 2.0..2.9, y 0.32..1.1 (0.70 m2), 2 cm apart (under 0.1 x 0.9 m), z 0..0.75, both in
+# view of the camera at the origin looking along +x (32.6 degrees each side; the far corner 29).
+END = ([2.3, 0.05, 0.375], [0.6, 0.5, 0.75], True)
+REST = ([2.45, 0.71, 0.375], [0.9, 0.78, 0.75], False)
+
+
+def test_a_table_end_and_the_rest_enclose():
+    """With merge_adjoining the two become one object whose box encloses both (the Defined end is
+    the smaller piece: a part, not the whole); without it they stay two."""
+    for flag, active in ((True, 1), (False, 2)):
+        cfg = defaults()
+        cfg["association"]["merge_adjoining"] = flag
+        smap = SemanticMap.new(["dining table", "chair"])
+        t = smap.objects
+        rows = [t.append(center=c, yaw=0.0, size=s, visible=np.ones(8, bool), defined=d,
+                         scores=np.array([0.9, 0.1, 0.0]), n_det=10, status=ACTIVE, first_session=0,
+                         last_session=0) for c, s, d in (END, REST)]
+        mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                        plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=0)
+        for r in rows:
+            mapper.index.insert(r, t.center[r], t.size[r])
+        depth, _ = render([(2.0, 2.6, -0.2, 0.3, 0.0, 0.75), (2.0, 2.9, 0.32, 1.1, 0.0, 0.75)], wall_x=4.0)
+        mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+        assert int((t.status[rows] == ACTIVE).sum()) == active
+        if flag:
+            # The older id stays; its box encloses both: x 2.0..2.9 (the larger piece's 0.9 m), y
+            # -0.2..1.1 less the erosion per side, z 0..0.75.
+            assert t.status[rows[1]] == MERGED
+            erosion = cfg["integration"]["erosion"]
+            np.testing.assert_allclose(t.size[rows[0]], [0.9, 1.3 - 2 * erosion, 0.75], atol=1e-6)
+            np.testing.assert_allclose(t.center[rows[0]], [2.45, 0.45, 0.375], atol=1e-6)

@@ -204,10 +204,10 @@ def partial_defined_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, fi
 def adjoining_part_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, share_by_class: np.ndarray | None,
                          max_gap: float | None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view, top classes (M,), Defined flags (M,)) that are pieces
-    of one long object: the same top class, one with a ``share_by_class`` (C+1,) over 0, both
-    partial or a Defined one and a partial one with no larger a footprint, and footprints apart by
-    at most ``max_gap`` metres or that share of the longer side of the two (z ranges overlapping).
-    [(gap, a, b)], a < b, nearest first; none when either is None.
+    of one long object: the same top class, one with a ``share_by_class`` (C+1,) over 0, not both
+    Defined (two whole things), and footprints apart by at most ``max_gap`` metres or that share of
+    the longer side of the two (z ranges overlapping). [(gap, a, b)], a < b, nearest first; none
+    when either is None. See :func:`enclosed_part` for the merged box.
 
     The detection-side rule (:func:`~ltc_cli.pipeline.association.adjoining_partial`) joins a view
     of a table's end to the box of its other end; two pieces made before the view that joins them
@@ -217,13 +217,8 @@ def adjoining_part_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, sha
         return []
     long_side = boxes.size[:, :2].max(axis=1)
     out = []
-    area = boxes.size[:, 0] * boxes.size[:, 1]
     for a in np.flatnonzero(np.asarray(share_by_class)[top] > 0):
-        # A Defined piece takes in a partial one no larger than itself (the whole and its part);
-        # two Defined boxes are two whole things. Without the size test a Defined 2.12 x 0.54 m
-        # sliver of held-out house 202's bed took the place of the bed's larger pieces.
-        whole_part = np.where(defined[a], ~defined & (area <= area[a]), ~defined | (area >= area[a]))
-        rest = np.flatnonzero((top == top[a]) & (np.arange(m) > a) & whole_part)
+        rest = np.flatnonzero((top == top[a]) & (np.arange(m) > a) & ~(defined[a] & defined))
         if rest.size == 0:
             continue
         gaps = footprint_gaps(boxes.take(slice(int(a), int(a) + 1)), boxes.take(rest))
@@ -280,6 +275,18 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     return sorted(out)
 
 
+def enclosed_part(a, b) -> bool:
+    """Of two pieces of one object (:func:`adjoining_part_pairs`), one Defined and one partial:
+    True when the Defined one's footprint is the smaller, so that it is a part, not the whole,
+    and the merged box encloses both (otherwise the Defined box stands, as in every merge)."""
+    whole, part = (a, b) if a.defined else (b, a)
+    return float(whole.size[0] * whole.size[1]) < float(part.size[0] * part.size[1])
+
+
+#: Keys of :func:`merge_pairs` from this on are pieces of one object (:func:`adjoining_part_pairs`).
+PIECES_KEY = 4e6
+
+
 def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: float | None = None,
                 defined: np.ndarray | None = None, first_session: np.ndarray | None = None,
                 session: int | None = None, scores: np.ndarray | None = None,
@@ -312,7 +319,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     pieces = adjoining_part_pairs(boxes, top, defined, adjoin_share, a_cfg["partial_adjoin_gap"]) \
         if overlap and defined is not None else []
     out = pairs + [(1e6 + k, a, b) for k, a, b in two_labels] + [(2e6 + g, a, b) for g, a, b in later] \
-        + [(3e6 + k, a, b) for k, a, b in parts] + [(4e6 + g, a, b) for g, a, b in pieces]
+        + [(3e6 + k, a, b) for k, a, b in parts] + [(PIECES_KEY + g, a, b) for g, a, b in pieces]
     if defined is None or a_cfg["other_class_height_ratio"] is None:
         return out
     return [(d, a, b) for d, a, b in out if top[a] == top[b] or not unlike_heights(

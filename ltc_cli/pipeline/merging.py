@@ -11,9 +11,11 @@ import numpy as np
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, top_class
 from ltc_cli.pipeline.association import match_reach
-from ltc_cli.pipeline.deduplication import greedy_merges, label_survivor, merge_pairs, stand_pairs
+from ltc_cli.pipeline.deduplication import (
+    PIECES_KEY, enclosed_part, greedy_merges, label_survivor, merge_pairs, stand_pairs,
+)
 from ltc_cli.pipeline.integration import (
-    confirmed_side, label_weight, merge_objects, merged_box, merged_scores, stale_side,
+    confirmed_side, enclosing_box, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
 from ltc_cli.pipeline.maintenance import tentative, union_span
 
@@ -34,8 +36,11 @@ class InstanceMerging:
                             t.scores[rows], self.cfg["integration"]["defined_part_volume"],
                             self._adjoin_share if a_cfg["merge_adjoining"] else None)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
+        pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
+                                                                          if key < PIECES_KEY}
         for keep, drop in merges:
-            self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key)
+            self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key,
+                         pieces=(min(keep, drop), max(keep, drop)) in pieces)
         return len(merges) + self._merge_stands(rows[t.status[rows] == ACTIVE], frame_index, frame_key)
 
     def _merge_stands(self, rows: np.ndarray, frame_index, frame_key) -> int:
@@ -69,15 +74,21 @@ class InstanceMerging:
         return tuple(label_weight(self._weight(r), float(t.n_det[r] + t.n_nondet[r]), same,
                                   self.cfg["integration"]["relabel_weight"]) for r in (older, newer))
 
-    def _merged(self, older: int, newer: int):
+    def _merged(self, older: int, newer: int, pieces: bool = False):
         """(box, class vector) of two map objects merged; the older one takes the role of the map
-        object and the newer one of the observation, whichever keeps its id."""
+        object and the newer one of the observation, whichever keeps its id. ``pieces``: two pieces
+        of one object (:func:`adjoining_part_pairs`), whose box encloses both."""
         t, i_cfg = self.map.objects, self.cfg["integration"]
         b_old, b_new = t.box(older), t.box(newer)
         w_old, w_new = self._merge_weights(older, newer)
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
                                     part_volume=i_cfg["defined_part_volume"])
+        if pieces and b_old.defined != b_new.defined and enclosed_part(b_old, b_new):
+            # A Defined piece smaller than the partial one beside it is not the whole, whatever its
+            # vertices said (a Defined end of a table beside a partial box of the rest): the two
+            # pieces enclose.
+            return enclosing_box(b_new, b_old, i_cfg["erosion"], self.cfg["modeling"]["min_extent"]), scores
         top = int(top_class(t.scores[older]))
         if int(top_class(t.scores[newer])) == top:
             box = self._outgrown(b_new, b_old, w_new, w_old, top, (older, newer), box)
@@ -108,11 +119,11 @@ class InstanceMerging:
         only_now = t.first_session[older] < self.session <= t.first_session[newer]
         return b if label_survivor(int(tops[0]), int(tops[1]), int(top_class(scores)), by_label, only_now) else a
 
-    def _absorb(self, keep, drop, frame_index, frame_key) -> None:
+    def _absorb(self, keep, drop, frame_index, frame_key, pieces: bool = False) -> None:
         t = self.map.objects
         self.rates.touch(keep)
         self.rates.touch(drop)
-        box, scores = self._merged(min(keep, drop), max(keep, drop))
+        box, scores = self._merged(min(keep, drop), max(keep, drop), pieces)
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
         for col in ("n_det", "n_nondet", "n_clear", "n_clear_det"):
