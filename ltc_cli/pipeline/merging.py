@@ -77,7 +77,8 @@ class InstanceMerging:
     def _merged(self, older: int, newer: int, pieces: bool = False):
         """(box, class vector) of two map objects merged; the older one takes the role of the map
         object and the newer one of the observation, whichever keeps its id. ``pieces``: two pieces
-        of one object (:func:`adjoining_part_pairs`), whose box encloses both."""
+        of one object (:func:`adjoining_part_pairs`); their box encloses both when the Defined one
+        is the smaller (:func:`enclosed_part`)."""
         t, i_cfg = self.map.objects, self.cfg["integration"]
         b_old, b_new = t.box(older), t.box(newer)
         w_old, w_new = self._merge_weights(older, newer)
