@@ -35,6 +35,7 @@ class ModelingSettings(TypedDict):
     taller_than: dict[str, dict]
     wider_than: dict[str, dict]
     narrower_than: dict[str, dict]
+    higher_than: dict[str, dict]
     defined_min_width: dict[str, float]
     max_depth_ratio: Optional[float]
     floor_classes: list[str]

@@ -34,7 +34,8 @@ class ClassFlags:
     of the class is never under (0: none) and the class such a box is then; whole_width: the
     longer side under which a box of the class is never whole (0: none); weighted: the classes
     whose mask points count for the pixels they stand for (``pixel_weights`` as a class list;
-    None: as ``pixel_weights`` says for all).
+    None: as ``pixel_weights`` says for all); max_gap and higher_is: the height above the floor
+    that the bottom of a box of the class never lies over (inf: none), and the class it is then.
     """
 
     moving: np.ndarray
@@ -48,6 +49,8 @@ class ClassFlags:
     min_width: np.ndarray | None = None
     narrower_is: np.ndarray | None = None
     whole_width: np.ndarray | None = None
+    max_gap: np.ndarray | None = None
+    higher_is: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
@@ -71,7 +74,8 @@ class ClassFlags:
                    np.array([float(priors.get(c, np.nan)) for c in classes] + [np.nan]),
                    *bounds("taller_than", "height"), *bounds("wider_than", "width"), weighted,
                    *bounds("narrower_than", "width", 0.0),
-                   np.array([float(wholes.get(c, 0.0)) for c in classes] + [0.0]))
+                   np.array([float(wholes.get(c, 0.0)) for c in classes] + [0.0]),
+                   *bounds("higher_than", "gap"))
 
 
 @dataclass
@@ -123,11 +127,17 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,
                                class_depth=flags.depth_prior[top],
-                               weighted=weighted_detections(flags.weighted, top))
+                               weighted=weighted_detections(flags.weighted, top),
+                               max_floor_gap=None if flags.max_gap is None else flags.max_gap[top])
     ratio = config["modeling"].get("max_depth_ratio")
     if ratio is not None and len(modeled.source):
         modeled = drop_deep_slabs(modeled, flags.depth_prior[top[modeled.source]], ratio)
     scores = list(scores)
+    if modeled.bottom_gap is not None and flags.max_gap is not None and np.isfinite(flags.max_gap).any() \
+            and len(modeled.source):
+        # A toilet stands on the floor: a "toilet" whose lowest point seen is 0.7 m up is the sink
+        # in a counter that the detector scored second (the two white bowls YOLO confuses).
+        scores = relabel_too_tall(scores, modeled.source, modeled.bottom_gap, flags.max_gap, flags.higher_is)
     if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
         scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, 2], flags.max_height, flags.taller_is)
     longer = modeled.boxes.size[:, :2].max(axis=1) if len(modeled.source) else np.zeros(0)
@@ -160,9 +170,7 @@ def drop_deep_slabs(modeled: ModeledDetections, depth_prior: np.ndarray, ratio: 
     deep = np.nan_to_num(depth_prior, nan=np.inf) * ratio < modeled.boxes.size[:, :2].min(axis=1)
     if not deep.any():
         return modeled
-    keep = np.flatnonzero(~deep)
-    return ModeledDetections(modeled.boxes.take(keep), modeled.defined[keep], modeled.source[keep],
-                             modeled.n_points[keep])
+    return modeled.take(np.flatnonzero(~deep))
 
 
 def relabel_too_tall(scores: list[np.ndarray], source: np.ndarray, heights: np.ndarray, max_height: np.ndarray,

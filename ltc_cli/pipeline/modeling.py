@@ -293,13 +293,20 @@ class ModeledDetections:
     """The boxes of one frame's detections that survived modeling.
 
     boxes: Boxes (M,) in the map frame, with visible flags; defined (M,) bool;
-    source (M,) index of each box's detection in the detector's list; n_points (M,).
+    source (M,) index of each box's detection in the detector's list; n_points (M,);
+    bottom_gap (M,): metres from the floor to the bottom of the box as seen, before grounding (NaN:
+    no floor height; None: not computed).
     """
 
     boxes: Boxes
     defined: np.ndarray
     source: np.ndarray
     n_points: np.ndarray
+    bottom_gap: np.ndarray | None = None
+
+    def take(self, keep: np.ndarray) -> "ModeledDetections":
+        gap = None if self.bottom_gap is None else self.bottom_gap[keep]
+        return ModeledDetections(self.boxes.take(keep), self.defined[keep], self.source[keep], self.n_points[keep], gap)
 
 
 def model_detections(
@@ -313,6 +320,7 @@ def model_detections(
     floor_z: float | None = None,
     class_depth: np.ndarray | None = None,
     weighted: np.ndarray | None = None,
+    max_floor_gap: np.ndarray | None = None,
 ) -> ModeledDetections:
     """Masks (H, W) of one frame -> boxes in the map frame (DESIGN.md 1.1).
 
@@ -320,6 +328,8 @@ def model_detections(
     minimum-area Z-oriented box -> drop specks and out-of-range boxes -> vertex visibility ->
     Defined. ``weighted`` (one bool per mask): whose points count for the pixels they stand for
     (``pixel_weights`` by class); None: every mask's when ``pixel_weights`` is true, none otherwise.
+    ``max_floor_gap`` (one per mask, inf: none): a ``grounded`` box whose bottom lies higher above
+    the floor than this is not grounded (it is no object of its class, ``modeling.higher_than``).
     """
     min_d, max_d = depth_range
     pts_list, groups, sources, pads, backs, weights, crops = [], [], [], [], [], [], []
@@ -393,9 +403,13 @@ def model_detections(
         if class_depth is not None:
             deepen_slabs(boxes, np.asarray(class_depth)[np.array(src)], np.array(gaps), T_map_camera[:3, 3],
                          p["thin_extent"])
+    gap = np.full(len(src), np.nan) if floor_z is None else boxes.center[:, 2] - boxes.size[:, 2] / 2 - floor_z
     if grounded is not None and floor_z is not None:
-        ground_to_floor(boxes, np.asarray(grounded)[np.array(src)], floor_z, p["ground_max_gap"])
-    out = ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts))
+        grounded = np.asarray(grounded)[np.array(src)]
+        if max_floor_gap is not None:
+            grounded = grounded & ~(gap > np.asarray(max_floor_gap)[np.array(src)])
+        ground_to_floor(boxes, grounded, floor_z, p["ground_max_gap"])
+    out = ModeledDetections(boxes, defined_flags(boxes.visible), np.array(src), np.array(npts), gap)
     explained = p.get("min_mask_explained")
     if explained is None or all(crops[g][3] >= explained for g in kept):
         return out
@@ -407,5 +421,4 @@ def model_detections(
             or mask_coverage(transform(T_camera_map, boxes.corners[k]), *crops[g][:3], intr) >= explained]
     if len(keep) == len(kept):
         return out
-    keep = np.array(keep, dtype=int)
-    return ModeledDetections(boxes.take(keep), out.defined[keep], out.source[keep], out.n_points[keep])
+    return out.take(np.array(keep, dtype=int))
