@@ -5,7 +5,12 @@ ingests them with the vertex metric and the non-detection policy (or --set / --c
 bench_accuracy's rows (any overlap; XY IoU > 0.25 with dup, ghosts, deleted, ids kept) and then,
 per lap, every false positive, missed seen object and lost id by its cause (--list: one by one).
 
+With --true-poses the houses are ingested with the poses their images were rendered from instead
+of the simulated localiser's (bench_ceiling.py, write_true_poses): what a perfect localiser, or a
+perfect pose correction, would give.
+
     python benchmarks/bench_breakdown.py [--houses 4] [--laps 2] [--profile realistic] [--set k=v]... [--list]
+        [--keep DIR] [--true-poses]
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
 import bench_accuracy as acc  # noqa: E402
+from bench_ceiling import write_true_poses  # noqa: E402
 from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import MERGED, REMOVED  # noqa: E402
@@ -103,14 +109,26 @@ def run_house(h: Path, laps: int, args):
     return out
 
 
+def true_pose_house(h: Path, laps: int) -> Path:
+    """The house's laps with the true poses, beside it in the cache (``<house>-truepose``)."""
+    out = h.parent / f"{h.name}-truepose"
+    for lap in range(1, laps + 1):
+        if not (out / f"lap{lap}" / "poses.txt").is_file():
+            write_true_poses(h / f"lap{lap}", out / f"lap{lap}")
+    return out
+
+
 def main():
     ap = acc.house_arguments()
     ap.add_argument("--list", action="store_true", help="print every error with its house, class and cause")
     ap.add_argument("--keep", type=Path, help="keep each house's map as DIR/<house>.h5 (after the last lap)")
+    ap.add_argument("--true-poses", action="store_true", help="ingest with the poses the images were rendered from")
     args = ap.parse_args()
     houses = [acc.house(args.scene, args.first_seed + i, (), args.laps, args.profile) for i in range(args.houses)]
-    print(f"{args.houses} '{args.scene}' houses ({args.profile}), config {args.config or 'defaults'}, "
-          f"overrides {args.sets or 'none'}")
+    if args.true_poses:
+        houses = [true_pose_house(h, args.laps) for h in houses]
+    print(f"{args.houses} '{args.scene}' houses ({args.profile}{', true poses' if args.true_poses else ''}), "
+          f"config {args.config or 'defaults'}, overrides {args.sets or 'none'}")
     totals = [dict() for _ in range(args.laps)]
     strict = [dict() for _ in range(args.laps)]
     causes = [{"fp": [], "fn": [], "id": []} for _ in range(args.laps)]

@@ -53,15 +53,40 @@ from ltc_cli.tools.simulate.drift import pose_errors  # noqa: E402
 POSE_STREAM = 0x10CA1  # the generator stream the simulator draws a lap's pose errors from
 
 
+def pose_lines_and_errors(lap_dir: Path):
+    """(poses.txt split into lines of fields, position errors (F, 3), rotation errors (F, 3) as
+    world-frame rotation vectors) of one simulated lap: the localiser's error, redrawn."""
+    meta = yaml.safe_load((lap_dir / "recording.yaml").read_text())["simulator"]
+    lines = [ln.split() for ln in (lap_dir / "poses.txt").read_text().splitlines() if ln.strip()]
+    d_pos, d_rot = pose_errors(np.random.default_rng([meta["seed"], meta["lap"], POSE_STREAM]), len(lines),
+                               meta["options"])
+    return lines, d_pos, d_rot
+
+
+def write_true_poses(lap_dir: Path, out_dir: Path) -> None:
+    """A copy of a simulated lap in ``out_dir`` whose poses.txt holds the true poses the images were
+    rendered from (every other file a link to the original): the simulator's estimated pose is the
+    true one with its rotation turned by the error about the camera centre, then moved by the
+    position error (ltc_cli/tools/simulate/drift.py, estimated_poses), undone here."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for f in lap_dir.iterdir():
+        if f.name != "poses.txt" and not (out_dir / f.name).exists():
+            (out_dir / f.name).symlink_to(f.resolve())
+    lines, d_pos, d_rot = pose_lines_and_errors(lap_dir)
+    rows = []
+    for ln, dp, dr in zip(lines, d_pos, d_rot):
+        t_true = np.array([float(x) for x in ln[1:4]]) - dp
+        q_true = (Rotation.from_rotvec(dr).inv() * Rotation.from_quat([float(x) for x in ln[4:8]])).as_quat()
+        rows.append(" ".join([ln[0], *(repr(float(x)) for x in (*t_true, *q_true))]))
+    (out_dir / "poses.txt").write_text("\n".join(rows) + "\n")
+
+
 def lap_views(lap_dir: Path):
     """(per-frame position errors (F, 3), rotation errors as Rotation (F,), true camera centres (F, 3),
     per-frame {object id: annotated pixels}, per-frame {object id: classes the detector gave it})
     of one simulated lap."""
-    meta = yaml.safe_load((lap_dir / "recording.yaml").read_text())["simulator"]
-    lines = [ln.split() for ln in (lap_dir / "poses.txt").read_text().splitlines() if ln.strip()]
+    lines, d_pos, d_rot = pose_lines_and_errors(lap_dir)
     t_est_xyz = np.array([[float(x) for x in ln[1:4]] for ln in lines])
-    d_pos, d_rot = pose_errors(np.random.default_rng([meta["seed"], meta["lap"], POSE_STREAM]), len(lines),
-                               meta["options"])
     pixels, named = [], []
     for ln in lines:
         ann = cv2.imread(str(lap_dir / "annotations" / f"{ln[0]}.png"), cv2.IMREAD_UNCHANGED)

@@ -373,6 +373,26 @@ def test_realistic_poses_drift_within_the_set_bounds(noisy, realistic):
         assert both.mean() > 0.3 and np.median(np.abs(d_b[both] - d_r[both])) < 30  # mm: sensor noise
 
 
+def test_true_poses_undo_the_localisers_error(noisy, realistic, tmp_path):
+    """benchmarks/bench_ceiling.py's write_true_poses on the realistic laps gives back the poses the
+    images were rendered from: the benign run's (same seed, same path), to rounding; every other
+    file is the realistic lap's own."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from bench_ceiling import write_true_poses
+
+    (bout, _), (rout, _) = noisy, realistic
+    for lap in ("lap1", "lap2"):
+        write_true_poses(rout / lap, tmp_path / lap)
+        true, undone, written = _read_poses(bout / lap), _read_poses(tmp_path / lap), _read_poses(rout / lap)
+        assert sorted(undone) == sorted(true)
+        for f in true:
+            assert undone[f] == pytest.approx(true[f], abs=1e-9)
+        assert max(np.abs(written[f][:3, 3] - true[f][:3, 3]).max() for f in true) > 0.01  # there was an error
+        assert (tmp_path / lap / "ground_truth.json").resolve() == (rout / lap / "ground_truth.json").resolve()
+
+
 def test_realistic_people_are_detected_and_never_ground_truth(realistic):
     out, _ = realistic
     schema = json.loads((SCHEMAS / "ground_truth.schema.json").read_text())
