@@ -36,6 +36,7 @@ class ModelingSettings(TypedDict):
     wider_than: dict[str, dict]
     narrower_than: dict[str, dict]
     higher_than: dict[str, dict]
+    top_under: dict[str, dict]
     defined_min_width: dict[str, float]
     max_depth_ratio: Optional[float]
     floor_classes: list[str]

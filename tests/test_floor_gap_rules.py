@@ -80,3 +80,79 @@ def test_stage_1_judges_toilets_and_sinks_by_their_height_above_the_floor(z0, ve
         assert np.isnan(out.modeled.bottom_gap).all()
     else:
         assert out.modeled.bottom_gap[0] == pytest.approx(z0 - floor_z, abs=0.04)
+
+
+# modeling.top_under: a refrigerator stands taller than a counter.
+KITCHEN = ["refrigerator", "oven", "chair"]  # then other
+
+
+def fridge_vector():
+    return np.array([0.6, 0.3, 0.05, 0.05])  # refrigerator 0.6, oven second
+
+
+def test_relabel_low_tops_by_hand():
+    """Floor at z 0.1; bound: a refrigerator's seen top never under 1.2 m above it. Box tops (z)
+    1.05 (0.95 up, a top corner visible and the mask ending against the wall: oven, its 0.6 moves
+    to 0.9), 1.05 with no top corner visible (not seen, not judged), 1.9 (1.8 up: stays), an oven
+    1.05 (no bound: stays)."""
+    from ltc_cli.geometry.boxes import Boxes
+    from ltc_cli.pipeline.frame_modeling import relabel_low_tops, seen_tops
+    from ltc_cli.pipeline.modeling import ModeledDetections
+
+    flags = ClassFlags(np.zeros(4, bool), np.zeros(4, bool), np.full(4, np.nan),
+                       min_top=np.array([1.2, -np.inf, -np.inf, -np.inf]), top_under_is=np.array([NEXT, -1, -1, -1]))
+    visible = np.zeros((4, 8), bool)
+    visible[[0, 2, 3], 5] = True  # one top corner of boxes 0, 2 and 3
+    visible[1, :4] = True         # box 1: only its bottom corners
+    boxes = Boxes(np.array([[0, 0, 0.6], [0, 0, 0.6], [0, 0, 1.0], [0, 0, 0.6]]), np.zeros(4),
+                  np.array([[0.6, 0.6, 0.9], [0.6, 0.6, 0.9], [0.7, 0.7, 1.8], [0.6, 0.6, 0.9]]), visible)
+    oven = np.array([0.3, 0.6, 0.05, 0.05])
+    scores = [fridge_vector(), fridge_vector(), fridge_vector(), oven]
+    modeled = ModeledDetections(boxes, np.zeros(4, bool), np.arange(4), np.full(4, 100))
+    # Every mask ends against a wall 1 m behind (the background test passes).
+    masks = [np.pad(np.ones((20, 10), bool), ((30, 30), (5, 5)))] * 4
+    depth = np.where(masks[0], 2.0, 3.0)
+    heights, seen = seen_tops(modeled, masks, depth, 0.1, np.array([1.2, 1.2, 1.2, -np.inf]))
+    assert heights == pytest.approx([0.95, 0.95, 1.8, 0.95]) and seen.tolist() == [True, False, True, True]
+    out = relabel_low_tops(scores, np.arange(4), heights, seen, flags)
+    assert out[0] == pytest.approx([0.0, 0.9, 0.05, 0.05])
+    for k in (1, 2, 3):
+        assert out[k] == pytest.approx(scores[k])
+
+
+@pytest.mark.parametrize("above, expected", [
+    (3.0, True),    # the wall 1 m behind the object above its mask: its top
+    (2.05, False),  # more of the object (5 cm deeper) above the mask: a cut, not a top
+    (0.0, False),   # no depth above it (a hole on a shiny door)
+])
+def test_top_in_view_by_hand(above, expected):
+    """A 20 x 10 px mask at depth 2 m starting at row 30: rows 18-27 above it hold ``above``."""
+    from ltc_cli.pipeline.frame_modeling import top_in_view
+
+    mask = np.zeros((80, 20), bool)
+    mask[30:50, 5:15] = True
+    depth = np.full((80, 20), 3.0)
+    depth[mask] = 2.0
+    depth[18:28, :] = above
+    assert top_in_view(mask, depth) is expected
+    # A mask touching the image's top edge has nothing above it.
+    assert top_in_view(np.roll(mask, -30, axis=0), depth) is False
+
+
+@pytest.mark.parametrize("z1, rule, expected", [
+    (0.95, True, "oven"),            # a "refrigerator" whose top is seen 0.95 m up
+    (1.8, True, "refrigerator"),     # 1.8 m: a refrigerator
+    (0.95, False, "refrigerator"),   # top_under {}: the paper
+])
+def test_stage_1_calls_a_low_refrigerator_its_next_class(z1, rule, expected):
+    """A 0.6 m wide, 0.6 m deep block 2 m ahead from the floor to z1, in full view (its front top
+    corners on the face the camera sees)."""
+    cfg = defaults()
+    assert cfg["modeling"]["top_under"] == {"refrigerator": {"height": 1.2, "is": "next"}}
+    if not rule:
+        cfg["modeling"]["top_under"] = {}
+    depth, masks = render([(2.0, 2.6, -0.3, 0.3, 0.0, z1)], wall_x=4.0)
+    out = model_frame(masks, [fridge_vector()], depth, T_world_camera(), INTR, (0.3, 6.0), cfg,
+                      ClassFlags.from_settings(KITCHEN, cfg), floor_z=0.0)
+    assert len(out.modeled.source) == 1 and out.modeled.boxes.visible[0, 4:].any()
+    assert KITCHEN[int(top_class(out.scores[0]))] == expected

@@ -35,7 +35,9 @@ class ClassFlags:
     longer side under which a box of the class is never whole (0: none); weighted: the classes
     whose mask points count for the pixels they stand for (``pixel_weights`` as a class list;
     None: as ``pixel_weights`` says for all); max_gap and higher_is: the height above the floor
-    that the bottom of a box of the class never lies over (inf: none), and the class it is then.
+    that the bottom of a box of the class never lies over (inf: none), and the class it is then;
+    min_top and top_under_is: the height above the floor that its top, seen, never lies under
+    (-inf: none), and the class it is then.
     """
 
     moving: np.ndarray
@@ -51,6 +53,8 @@ class ClassFlags:
     whole_width: np.ndarray | None = None
     max_gap: np.ndarray | None = None
     higher_is: np.ndarray | None = None
+    min_top: np.ndarray | None = None
+    top_under_is: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
@@ -75,7 +79,7 @@ class ClassFlags:
                    *bounds("taller_than", "height"), *bounds("wider_than", "width"), weighted,
                    *bounds("narrower_than", "width", 0.0),
                    np.array([float(wholes.get(c, 0.0)) for c in classes] + [0.0]),
-                   *bounds("higher_than", "gap"))
+                   *bounds("higher_than", "gap"), *bounds("top_under", "height", -np.inf))
 
 
 @dataclass
@@ -138,6 +142,10 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         # A toilet stands on the floor: a "toilet" whose lowest point seen is 0.7 m up is the sink
         # in a counter that the detector scored second (the two white bowls YOLO confuses).
         scores = relabel_too_tall(scores, modeled.source, modeled.bottom_gap, flags.max_gap, flags.higher_is)
+    if floor_z is not None and flags.min_top is not None and np.isfinite(flags.min_top).any() and len(modeled.source):
+        now = np.array([int(top_class(scores[int(i)])) for i in modeled.source], dtype=int)
+        heights, seen = seen_tops(modeled, masks, depth_m, floor_z, flags.min_top[now])
+        scores = relabel_low_tops(scores, modeled.source, heights, seen, flags)
     if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
         scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, 2], flags.max_height, flags.taller_is)
     longer = modeled.boxes.size[:, :2].max(axis=1) if len(modeled.source) else np.zeros(0)
@@ -203,6 +211,53 @@ def relabel_too_tall(scores: list[np.ndarray], source: np.ndarray, heights: np.n
         v[top] = 0.0
         out[i] = v
     return out
+
+
+def top_in_view(mask: np.ndarray, depth_m: np.ndarray, band: tuple[int, int] = (3, 12), behind: float = 0.15,
+                share: float = 0.5) -> bool:
+    """Whether the top edge of a mask (H, W) is its object's top: in the ``band`` of rows above the
+    mask's top in each of its columns (from band[0] to band[1] pixels up, past a CNN mask's bleed),
+    at least ``share`` of the depth readings (H, W, metres; 0 = none) lie ``behind`` metres or more
+    beyond the object's median depth. A mask cut by the image's top edge, by depth holes on a shiny
+    door, or split along the object ends at more of the object (or at nothing), not behind it."""
+    cols = np.flatnonzero(mask.any(axis=0))
+    z = depth_m[mask]
+    z = z[z > 0]
+    if not len(cols) or not len(z):
+        return False
+    first = mask[:, cols].argmax(axis=0)
+    rows = first[None, :] - np.arange(band[0], band[1] + 1)[:, None]  # (band rows, columns)
+    inside = rows >= 0
+    if not inside.any():
+        return False
+    d = depth_m[rows[inside], np.broadcast_to(cols, rows.shape)[inside]]
+    return bool(np.mean(d > np.median(z) + behind) >= share)
+
+
+def seen_tops(modeled: ModeledDetections, masks: list[np.ndarray], depth_m: np.ndarray, floor_z: float,
+              min_top: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(heights of the boxes' tops above the floor (M,), whether each top was seen (M,)) for
+    :func:`relabel_low_tops`. A top is seen when a top corner is visible (the Z-buffer test: not
+    hidden, inside the image) and, for a box under its class's ``min_top`` (M,), when its mask ends
+    against the background (:func:`top_in_view`). A mask of a refrigerator's lower half (simulated
+    house 103) has a box whose top corners pass the Z-buffer test: the door above them is no nearer
+    than they are."""
+    boxes = modeled.boxes
+    top = boxes.center[:, 2] + boxes.size[:, 2] / 2 - floor_z
+    seen = boxes.visible[:, 4:].any(axis=1)
+    for k in np.flatnonzero(seen & (top < min_top)):
+        seen[k] = top_in_view(masks[int(modeled.source[k])], depth_m)
+    return top, seen
+
+
+def relabel_low_tops(scores: list[np.ndarray], source: np.ndarray, top: np.ndarray, seen: np.ndarray,
+                     flags: ClassFlags) -> list[np.ndarray]:
+    """As :func:`relabel_too_tall`, for a lower bound on where a box's top lies above the floor
+    (``top`` (M,), metres), judged only where the top was ``seen`` (M,): a refrigerator stands
+    taller than a counter, so a "refrigerator" whose top is seen 0.95 m up is the oven its
+    detector scored second (``min_top`` and ``top_under_is`` of :class:`ClassFlags`)."""
+    return relabel_too_tall(scores, source, np.where(seen, -np.asarray(top, dtype=np.float64), -np.inf),
+                            -flags.min_top, flags.top_under_is)
 
 
 def relabel_too_narrow(scores: list[np.ndarray], source: np.ndarray, widths: np.ndarray, defined: np.ndarray,
