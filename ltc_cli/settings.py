@@ -111,6 +111,7 @@ class MaintenanceSettings(TypedDict):
     min_detections: int
     min_detection_share: Optional[float]
     min_detection_views: Optional[int]
+    confirm_across_sessions: bool
     confirm_min_move: Optional[float]
     confirm_min_turn: Optional[float]
     tentative_until_end: bool

@@ -11,6 +11,7 @@ import numpy as np
 
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.camera import project, transform
+from ltc_cli.geometry.polygons import pairwise_ious_arrays
 from ltc_cli.pipeline.visibility import occupied_pixels, pixel_counts
 from ltc_cli.types import Intrinsics
 
@@ -232,6 +233,31 @@ def unconfirmed(n_det: np.ndarray, n_clear: np.ndarray, min_detections: int, min
         # 0: made before ltc counted views (a session resumed after an upgrade): not judged so.
         weak |= (views > 0) & (views < min_views)
     return weak
+
+
+def removed_unconfirmed(status: np.ndarray, first_session: np.ndarray, last_session: np.ndarray, weak: np.ndarray,
+                        session: int, removed: int) -> np.ndarray:
+    """(N,) bool: objects an earlier session removed as unconfirmed: status ``removed``, detected
+    only in the session that made them, before ``session``, on evidence the confirmation rule finds
+    too weak (``weak`` (N,), :func:`unconfirmed` on their columns as they were removed)."""
+    return (status == removed) & (first_session == last_session) & (last_session < session) & weak
+
+
+def seen_in_earlier_session(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np.ndarray) -> np.ndarray:
+    """(K,) index into ``earlier`` of an object of the same top class whose footprint overlaps that
+    of each of K tentative objects (``boxes``, ``top`` (K,)), or -1.
+
+    The confirmation rule asks two detections from two views of one session, against a detector's
+    one-off false positives. A thing the detector names once per visit (a tv seen at an angle, a
+    table half hidden by chairs) is removed at every session's end; named again at the same place
+    in a later session, from a view a session apart, it is the same evidence twice."""
+    out = np.full(len(boxes), -1, dtype=int)
+    if not len(boxes) or not len(earlier):
+        return out
+    iou, _ = pairwise_ious_arrays(boxes.center, boxes.yaw, boxes.size, earlier.center, earlier.yaw, earlier.size)
+    ok = (iou > 0.0) & (np.asarray(top)[:, None] == np.asarray(earlier_top)[None, :])
+    best = np.where(ok, iou, -1.0).argmax(axis=1)
+    return np.where(ok.any(axis=1), best, -1)
 
 
 # The directions along which an object's detection views are spread (span_views), for the camera

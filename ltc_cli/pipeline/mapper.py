@@ -27,7 +27,8 @@ from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view,
-    non_detection_vectors, other_leads, seen_empty, span_views, tentative, unconfirmed, view_counts, widen_span,
+    non_detection_vectors, other_leads, removed_unconfirmed, seen_empty, seen_in_earlier_session, span_views,
+    tentative, unconfirmed, view_counts, widen_span,
 )
 from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, unconfirmed_detail
 from ltc_cli.pipeline.rates import DetectionRates
@@ -284,6 +285,8 @@ class Mapper(InstanceMerging, BoxIntegration):
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
         seen_from = self._confirm_views()
         rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, seen_from[rows], min_views)]
+        if m_cfg["confirm_across_sessions"] and len(rows):
+            rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key)
         absent = m_cfg["absent_after_views"]
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
@@ -305,6 +308,19 @@ class Mapper(InstanceMerging, BoxIntegration):
                                             seen_from[row], min_views))
         self.rates.settle()
         return len(rows) + gone
+
+    def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key):
+        """``rows`` less those an earlier session's unconfirmed object confirms
+        (:func:`~ltc_cli.pipeline.maintenance.seen_in_earlier_session`), which stay (logged)."""
+        t = self.map.objects
+        weak = unconfirmed(t.n_det, t.n_clear, min_detections, min_share, seen_from, min_views)
+        old = np.flatnonzero(removed_unconfirmed(t.status, t.first_session, t.last_session, weak, self.session, REMOVED))
+        top = top_class(t.scores)
+        match = seen_in_earlier_session(t.boxes(rows), top[rows], t.boxes(old), top[old])
+        for row, k in zip(rows[match >= 0], match[match >= 0]):
+            self._log(frame_index, frame_key, "updated", row + 1,
+                      detail=f"confirmed: object {old[k] + 1} stood here, unconfirmed, in session {t.last_session[old[k]]}")
+        return rows[match < 0]
 
     # -- applying decisions ------------------------------------------------------------------
     def _remove(self, row, frame_index, frame_key, detail) -> None:
