@@ -82,3 +82,29 @@ def test_a_chair_named_once_in_each_of_two_sessions_stays(rule):
     # A third session that names it once more: it is an earlier session's confirmed object now.
     _, removed = one_detection_session(smap, cfg, 2)
     assert removed == 0 and t.n == 2 and t.status[1] == ACTIVE
+
+
+@pytest.mark.parametrize("beside, stays", [(False, True), (True, False)])
+def test_no_confirmation_beside_the_same_thing_already_mapped(beside, stays):
+    """Session 1 ends with a one-detection chair (row 1, 1 x 1 m at x 2.2) over the footprint of a
+    chair session 0 removed as unconfirmed (row 0, at x 2.0): it stays, unless a chair of the map
+    already stands on its footprint (row 2 at x 2.6, 20 detections): that one is the thing, and
+    the candidate a duplicate of it."""
+    cfg = defaults()
+    cfg["maintenance"]["confirm_across_sessions"] = True
+    smap = SemanticMap.new(CLASSES)
+    t = smap.objects
+    chair = chair_vector(0.8)
+
+    def add(x, status, session, n_det):
+        t.append(center=np.array([x, 0.0, 0.5]), yaw=0.0, size=np.array([1.0, 1.0, 1.0]), scores=chair,
+                 n_det=n_det, status=status, first_session=session, last_session=session)
+
+    add(2.0, REMOVED, 0, 1)
+    add(2.2, ACTIVE, 1, 1)
+    if beside:
+        add(2.6, ACTIVE, 0, 20)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    assert mapper.prune_unconfirmed(2, -1, "end") == (0 if stays else 1)
+    assert t.status[1] == (ACTIVE if stays else REMOVED)

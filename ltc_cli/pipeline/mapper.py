@@ -317,6 +317,9 @@ class Mapper(InstanceMerging, BoxIntegration):
         old = np.flatnonzero(removed_unconfirmed(t.status, t.first_session, t.last_session, weak, self.session, REMOVED))
         top = top_class(t.scores)
         match = seen_in_earlier_session(t.boxes(rows), top[rows], t.boxes(old), top[old])
+        # A thing already in the map under its class is not confirmed again beside it (a duplicate).
+        live = np.setdiff1d(np.flatnonzero(t.status == ACTIVE), rows)
+        match[seen_in_earlier_session(t.boxes(rows), top[rows], t.boxes(live), top[live]) >= 0] = -1
         for row, k in zip(rows[match >= 0], match[match >= 0]):
             self._log(frame_index, frame_key, "updated", row + 1,
                       detail=f"confirmed: object {old[k] + 1} stood here, unconfirmed, in session {t.last_session[old[k]]}")
