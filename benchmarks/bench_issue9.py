@@ -1,7 +1,8 @@
 """Every simulated figure of issue 9 in one run, as the tables of docs/decisions.md: the realistic
 houses the rules were developed on (seeds 101-104) and the held-out ones (201-204, and 301-304
-first run in the twenty-fourth round), small and medium, after lap 2; the static policy and the paper's config (docs/paper.yaml) on the development
-houses; the benign profile on the small ones; and with ``--five-laps`` every lap of five.
+first run in the twenty-fourth round), small and medium, after lap 2; the static policy and the
+paper's config (docs/paper.yaml) on the development houses; the benign profile on the small ones;
+and with ``--five-laps`` every lap of five.
 
 Each set is bench_breakdown.py's run (vertex metric, non-detection policy, benchmarks/.cache's
 houses) in a child process, ``--jobs`` at a time; the figures are the same as its rows.

@@ -9,7 +9,7 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
-from ltc_cli.pipeline.maintenance import removed_unconfirmed, seen_in_earlier_session
+from ltc_cli.pipeline.maintenance import removed_unconfirmed, same_class_overlap
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
 from tests.test_identity import CHAIR_FACE, CLASSES, chair_vector
@@ -33,19 +33,19 @@ def test_removed_unconfirmed_by_hand():
         [True, True, False, False, False, False, False]
 
 
-def test_seen_in_earlier_session_by_hand():
+def test_same_class_overlap_by_hand():
     """Tentative 1 x 1 m boxes at x 0, 5 and 10; earlier ones: at x 0.8 (class 0, overlaps the
     first by 0.2 x 1 = 0.2, IoU 0.2 / 1.8), at x 0.5 (class 1: another class), at x 5.5 (class 0,
     IoU 0.5 / 1.5), at x 6.5 (class 0, IoU 0: 0.5 m apart); the third tentative box is of class 1,
     with none of its class near it."""
     cand = boxes((0, 0, 1), (5, 0, 1), (10, 0, 1))
     earlier = boxes((0.8, 0, 1), (0.5, 0, 1), (5.5, 0, 1), (6.5, 0, 1))
-    out = seen_in_earlier_session(cand, np.array([0, 0, 1]), earlier, np.array([0, 1, 0, 0]))
+    out = same_class_overlap(cand, np.array([0, 0, 1]), earlier, np.array([0, 1, 0, 0]))
     assert out.tolist() == [0, 2, -1]
     # The best overlap wins: a second class-0 box at x 0.3 (IoU 0.7 / 1.3) beats x 0.8.
     earlier = boxes((0.8, 0, 1), (0.3, 0, 1))
-    assert seen_in_earlier_session(cand, np.array([0, 0, 1]), earlier, np.array([0, 0])).tolist() == [1, -1, -1]
-    assert seen_in_earlier_session(cand, np.array([0, 0, 1]), boxes(), np.zeros(0, int)).tolist() == [-1, -1, -1]
+    assert same_class_overlap(cand, np.array([0, 0, 1]), earlier, np.array([0, 0])).tolist() == [1, -1, -1]
+    assert same_class_overlap(cand, np.array([0, 0, 1]), boxes(), np.zeros(0, int)).tolist() == [-1, -1, -1]
 
 
 def one_detection_session(smap, cfg, session: int):

@@ -243,9 +243,11 @@ def removed_unconfirmed(status: np.ndarray, first_session: np.ndarray, last_sess
     return (status == removed) & (first_session == last_session) & (last_session < session) & weak
 
 
-def seen_in_earlier_session(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np.ndarray) -> np.ndarray:
-    """(K,) index into ``earlier`` of an object of the same top class whose footprint overlaps that
-    of each of K tentative objects (``boxes``, ``top`` (K,)), or -1.
+def same_class_overlap(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np.ndarray) -> np.ndarray:
+    """(K,) index into ``earlier`` of the object of the same top class whose footprint overlaps
+    that of each of K objects (``boxes``, ``top`` (K,)) the most, or -1. For confirm_across_sessions:
+    ``earlier`` an earlier session's unconfirmed objects (the thing seen before), or the map's
+    active ones (the thing already mapped).
 
     The confirmation rule asks two detections from two views of one session, against a detector's
     one-off false positives. A thing the detector names once per visit (a tv seen at an angle, a

@@ -27,7 +27,7 @@ from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view,
-    non_detection_vectors, other_leads, removed_unconfirmed, seen_empty, seen_in_earlier_session, span_views,
+    non_detection_vectors, other_leads, removed_unconfirmed, seen_empty, same_class_overlap, span_views,
     tentative, unconfirmed, view_counts, widen_span,
 )
 from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, unconfirmed_detail
@@ -311,15 +311,15 @@ class Mapper(InstanceMerging, BoxIntegration):
 
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key):
         """``rows`` less those an earlier session's unconfirmed object confirms
-        (:func:`~ltc_cli.pipeline.maintenance.seen_in_earlier_session`), which stay (logged)."""
+        (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`), which stay (logged)."""
         t = self.map.objects
         weak = unconfirmed(t.n_det, t.n_clear, min_detections, min_share, seen_from, min_views)
         old = np.flatnonzero(removed_unconfirmed(t.status, t.first_session, t.last_session, weak, self.session, REMOVED))
-        top = top_class(t.scores)
-        match = seen_in_earlier_session(t.boxes(rows), top[rows], t.boxes(old), top[old])
+        top, boxes = top_class(t.scores), t.boxes(rows)
+        match = same_class_overlap(boxes, top[rows], t.boxes(old), top[old])
         # A thing already in the map under its class is not confirmed again beside it (a duplicate).
         live = np.setdiff1d(np.flatnonzero(t.status == ACTIVE), rows)
-        match[seen_in_earlier_session(t.boxes(rows), top[rows], t.boxes(live), top[live]) >= 0] = -1
+        match[same_class_overlap(boxes, top[rows], t.boxes(live), top[live]) >= 0] = -1
         for row, k in zip(rows[match >= 0], match[match >= 0]):
             self._log(frame_index, frame_key, "updated", row + 1,
                       detail=f"confirmed: object {old[k] + 1} stood here, unconfirmed, in session {t.last_session[old[k]]}")
