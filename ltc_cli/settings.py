@@ -71,6 +71,7 @@ class AssociationSettings(TypedDict):
     stand_margin: float
     stand_low: Optional[float]
     part_label_share: Optional[float]
+    container_max_width: Optional[dict[str, float]]
     merge_containment: Optional[float]
     merge_current_box: bool
     merge_id_by_label: bool

@@ -225,6 +225,21 @@ def similar_volume(vol_a: np.ndarray, vol_b: np.ndarray, min_ratio: float | None
         return np.where(hi > 0, lo / hi, 1.0) >= min_ratio
 
 
+def too_wide(top: np.ndarray, size: np.ndarray, max_width: np.ndarray | None) -> np.ndarray:
+    """(M,) bool: boxes (top classes (M,), sizes (M, 3)) whose footprint's longer side is over
+    ``max_width`` (C+1,) of their class (inf: no bound; None: none is), so that they are no single
+    object of their class.
+
+    Such a box never takes in a partial box of another class by containment: a partial "chair"
+    1.85 x 1.6 m is the pieces of two chairs side by side, joined under the detector's "couch" for
+    one of them and drift, and the partial dining table inside it is a table, not that chair under
+    another label (second held-out house 302: the table's object went into the blob and the table
+    was lost). A Defined box inside it still joins, and replaces its box (DESIGN.md 1.3)."""
+    if max_width is None:
+        return np.zeros(len(top), dtype=bool)
+    return size[:, :2].max(axis=1) > np.asarray(max_width)[np.asarray(top)]
+
+
 def foreign_geometry(top_a: int, top_b: int, size_a: np.ndarray, size_b: np.ndarray, ratio: float | None) -> bool:
     """True when box a (size (3,)) must not reshape box b: another top class and a volume not
     within ``ratio`` (:func:`similar_volume`)."""

@@ -13,7 +13,8 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
 from ltc_cli.pipeline.association import (
-    footprint_gaps, ground_shares, half_diagonals, pairwise_containment, similar_volume, thresholds_for, unlike_heights,
+    footprint_gaps, ground_shares, half_diagonals, pairwise_containment, similar_volume, thresholds_for, too_wide,
+    unlike_heights,
 )
 from ltc_cli.pipeline.integration import PART_INSIDE_SHARE, shares_inside
 
@@ -23,7 +24,7 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
                     other_volume_ratio: float | None = None, reach: float | None = None,
                     other_scale: float | None = None, min_overlap: float | None = None,
                     defined: np.ndarray | None = None, established: np.ndarray | None = None,
-                    labels_apart: bool = False) -> list[tuple[float, int, int]]:
+                    labels_apart: bool = False, max_width: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -44,6 +45,9 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     With ``labels_apart`` two Defined boxes of different top classes are not exempt either: one
     object under two labels shares its ground, and a whole cup and a whole mouse 26 cm apart on a
     desk came under eq. 2's other-class threshold over the six vertices both showed.
+
+    ``max_width`` (C+1,): per class, the widest footprint that takes in a partial object of another
+    class by containment (:func:`~ltc_cli.pipeline.association.too_wide`; None: any).
     """
     m = len(boxes)
     if m < 2:
@@ -60,6 +64,13 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
         other_ok = np.where(similar_volume(vol[:, None], vol[None, :], other_volume_ratio), need_other or np.inf, np.inf)
         need = np.where(top[:, None] == top[None, :], need_same, other_ok)
         contained = inside >= need
+        if max_width is not None:
+            # Of two boxes of other classes the larger one contains; a too wide one takes in only a
+            # Defined box (which then replaces its box).
+            wide = too_wide(top, boxes.size, max_width)
+            part = np.ones(m, dtype=bool) if defined is None else ~np.asarray(defined, dtype=bool)
+            blocked = np.where(vol[:, None] >= vol[None, :], wide[:, None] & part[None, :], wide[None, :] & part[:, None])
+            contained &= ~(blocked & (top[:, None] != top[None, :]))
     halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the other-class caps
     pairs = []
     for a in range(m - 1):
@@ -291,7 +302,8 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                 defined: np.ndarray | None = None, first_session: np.ndarray | None = None,
                 session: int | None = None, scores: np.ndarray | None = None,
                 part_volume: float | None = None,
-                adjoin_share: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                adjoin_share: np.ndarray | None = None,
+                max_width: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
     association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
     inside the other by ``merge_containment``, default ``containment``), then one object under two
@@ -300,7 +312,8 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     The overlap rules all stand down with ``containment`` off (the paper: vertex distance only).
     ``reach``: as for duplicate_pairs. ``session``: the current one; with ``established_apart`` and
     ``first_session``, objects made before it are ``established`` for duplicate_pairs.
-    ``adjoin_share`` (C+1,): pieces of one long object last (:func:`adjoining_part_pairs`; None: none)."""
+    ``adjoin_share`` (C+1,): pieces of one long object last (:func:`adjoining_part_pairs`; None: none).
+    ``max_width`` (C+1,): as for duplicate_pairs (``container_max_width``)."""
     overlap = a_cfg["containment"] is not None
     established = first_session < session if a_cfg["established_apart"] and first_session is not None \
         and session is not None else None
@@ -308,7 +321,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                             overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
                             a_cfg["other_class_scale"], a_cfg["merge_min_overlap"], defined, established,
-                            a_cfg["labels_apart"])
+                            a_cfg["labels_apart"], max_width)
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

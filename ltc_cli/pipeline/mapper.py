@@ -66,6 +66,8 @@ class Mapper(InstanceMerging, BoxIntegration):
         self.flags = ClassFlags.from_settings(smap.classes, config)
         shares = config["association"].get("partial_adjoin_share") or {}
         self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
+        widths = config["association"]["container_max_width"] or {}
+        self._container_width = np.array([float(widths.get(c, np.inf)) for c in smap.classes] + [np.inf])
         outgrow = config["integration"]["partial_outgrow"] or {}
         self._outgrow = [outgrow.get(c) for c in smap.classes] + [None]
         fixtures = set(config["maintenance"]["fixture_classes"] or [])

@@ -34,7 +34,7 @@ class InstanceMerging:
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
                             match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session,
                             t.scores[rows], self.cfg["integration"]["defined_part_volume"],
-                            self._adjoin_share if a_cfg["merge_adjoining"] else None)
+                            self._adjoin_share if a_cfg["merge_adjoining"] else None, self._container_width)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
                                                                           if key < PIECES_KEY}
