@@ -124,6 +124,7 @@ class MaintenanceSettings(TypedDict):
     absent_through_share: float
     through_margin: float
     nondet_through_share: Optional[float]
+    nondet_through_holes: bool
     occupied_margin: Optional[float]
     occupied_lift: float
     occupied_share: float

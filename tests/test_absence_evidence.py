@@ -162,3 +162,37 @@ def test_a_place_seen_empty_in_part_is_a_clear_view_for_the_absence_rule(share, 
     assert t.clear_since_det[row] == clear and t.n_nondet[row] == 0
     mapper.prune_unconfirmed(2, -1, "end", None)
     assert t.status[row] == expected
+
+
+# A dark screen in the chair's place: no depth reading left of column 305 (y > 0.06 m at 2 m), the
+# wall at 4 m to the right. The chair's box images as columns 245-394 (y 0.3 to -0.3 at 2 m):
+# 60 of its 150 columns have no reading, 90 see the wall.
+def dark_left_depth():
+    depth, _ = render([], wall_x=4.0)
+    depth[:, :305] = 0.0
+    return depth
+
+
+def test_unread_pixels_of_a_box_by_hand():
+    vis, proj, empty, through, unread = pixel_counts(boxes(CHAIR_FACE), T_world_camera(), dark_left_depth(), INTR, 1,
+                                                     0.2, (0.3, 6.0), with_empty=True, past_middle=0.03, unread=True)
+    assert vis[0] == pytest.approx(0.6 * proj[0]) and unread[0] == pytest.approx(0.4 * proj[0])
+    assert through[0] == vis[0]  # every reading is the wall, past the middle (2.2 m) by more than 3 cm
+
+
+@pytest.mark.parametrize("holes, dark, nondets", [
+    (True, True, 0),    # 61 % visible (a clear view), all of it the wall: 0.61 of visible + unread < 0.65
+    (False, True, 1),   # over the visible pixels alone, 100 % seen through: the miss counts
+    (True, False, 1),   # no screen: the wall everywhere, the miss counts either way
+])
+def test_a_miss_where_the_depth_has_no_reading_does_not_count(holes, dark, nondets):
+    """maintenance.nondet_through_holes (twenty-fifth round): at ray_step 8 the box samples 28800
+    pixels, 17600 with the wall's reading and 11200 without (the same 60 / 150 columns)."""
+    cfg = defaults()
+    cfg["maintenance"]["spare_frames"] = None
+    cfg["maintenance"]["nondet_through_holes"] = holes
+    t, row, mapper = old_chair_in_session_1(cfg)
+    depth = dark_left_depth() if dark else render([], wall_x=4.0)[0]
+    mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.n_nondet[row] == nondets
+    assert t.n_clear[row] == 1  # clearly visible either way (17600 >= half of 28800)

@@ -44,7 +44,9 @@ class ViewCounts(NamedTuple):
     pixels for a non-detection, the ``empty`` ones (seen beyond the box's far side), the visible
     pixels for the absence rule (``visible_absent``) and of those the ones seen past the box's
     middle (``through_absent``; None when the absence rule does not ask for them), and the pixels
-    the absence rule needs of a view that saw through the box (``needed_through``)."""
+    the absence rule needs of a view that saw through the box (``needed_through``), and of the
+    pixels counted in ``visible_absent``'s way, those where the depth has no reading (``unread``:
+    zeros unless ``nondet_through_holes``)."""
 
     visible: np.ndarray
     needed: np.ndarray
@@ -52,6 +54,7 @@ class ViewCounts(NamedTuple):
     visible_absent: np.ndarray
     through_absent: np.ndarray | None
     needed_through: np.ndarray
+    unread: np.ndarray
 
 
 def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, intr: Intrinsics,
@@ -59,21 +62,25 @@ def view_counts(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, int
     """The :class:`ViewCounts` of boxes in view, by the maintenance settings ``m_cfg``:
     :func:`pixel_counts` with its hiding rules (``hidden_by_whole_box``: True for every count,
     "absence" for the absence rule's only; ``hide_needs_depth``; ``through_margin`` past the
-    middle when ``absent_through_views`` or ``nondet_through_share`` is set) and
-    :func:`required_pixels` scaled from 640x480."""
+    middle when ``absent_through_views`` or ``nondet_through_share`` is set; the unread pixels with
+    ``nondet_through_holes``) and :func:`required_pixels` scaled from 640x480."""
     whole = m_cfg["hidden_by_whole_box"]
     through = m_cfg["absent_through_views"] is not None or m_cfg["nondet_through_share"] is not None
+    holes = bool(m_cfg["nondet_through_holes"]) and m_cfg["nondet_through_share"] is not None
     counts = pixel_counts(
         boxes, T_map_camera, depth_m, intr, m_cfg["ray_step"], m_cfg["depth_tolerance"], depth_range,
         with_empty=True, hidden_by_whole_box=whole is True, with_whole_box=whole == "absence",
-        hide_needs_depth=m_cfg["hide_needs_depth"], past_middle=m_cfg["through_margin"] if through else None)
+        hide_needs_depth=m_cfg["hide_needs_depth"], past_middle=m_cfg["through_margin"] if through else None,
+        unread=holes)
+    unread = counts[-1] if holes else np.zeros(len(boxes))
+    counts = counts[:-1] if holes else counts
     vis_px, proj_px, empty_px = counts[:3]
     scale = (intr.width * intr.height) / (640 * 480)  # pixel thresholds are for 640x480
     need, need_through = (required_pixels(proj_px, m_cfg["min_visible_pixels"] * scale, m_cfg["min_visible_fraction"],
                                           m_cfg["min_pixels_floor"] * scale, share)
                           for share in (m_cfg["min_visible_share"], m_cfg["through_visible_share"]))
     vis_absent = counts[3] if whole == "absence" else vis_px
-    return ViewCounts(vis_px, need, empty_px, vis_absent, counts[-1] if through else None, need_through)
+    return ViewCounts(vis_px, need, empty_px, vis_absent, counts[-1] if through else None, need_through, unread)
 
 
 def stands_there(occupied_px: np.ndarray, visible_px: np.ndarray, share: float) -> np.ndarray:

@@ -246,7 +246,7 @@ class Mapper(InstanceMerging, BoxIntegration):
         margin of their box (``held_by_depth``: neither a miss nor seen through for the absence rule)."""
         m_cfg = self.cfg["maintenance"]
         boxes = self.map.objects.boxes(rows)
-        vis_px, need, empty_px, vis_absent, through_px, need_through = view_counts(
+        vis_px, need, empty_px, vis_absent, through_px, need_through, unread = view_counts(
             boxes, T_map_camera, depth_m, intr, depth_range, m_cfg)
         held = held_by_depth(boxes, T_map_camera, depth_m, intr, vis_absent, m_cfg)
         missed = np.asarray(self.policy.non_detections(matched, vis_px, need), dtype=bool) & ~matched & ~held
@@ -255,8 +255,9 @@ class Mapper(InstanceMerging, BoxIntegration):
             missed &= ~found_again(t.first_session[rows], t.last_session[rows], t.last_frame[rows], self.session,
                                    frame_index, m_cfg["spare_frames"])
         if m_cfg["nondet_through_share"] is not None:
-            # Where the depth shows something standing in the box, the detector's silence is its own.
-            missed &= seen_empty(vis_absent, through_px, m_cfg["nondet_through_share"])
+            # Where the depth shows something standing in the box, the detector's silence is its own;
+            # where it has no reading (nondet_through_holes), it shows nothing either way.
+            missed &= seen_empty(vis_absent + unread, through_px, m_cfg["nondet_through_share"])
         empty = missed & seen_empty(vis_px, empty_px, m_cfg["seen_empty_share"])
         if missed.any():
             # A miss where the depth shows free space is not the detector's word but the camera's:

@@ -111,6 +111,7 @@ def pixel_counts(
     with_whole_box: bool = False,
     hide_needs_depth: bool | str = False,
     past_middle: float | None = None,
+    unread: bool = False,
 ):
     """Pixels of each box that the camera should see: (visible (M,), projected (M,)), and with
     ``with_empty`` also empty (M,): those of the visible pixels whose observed depth lies beyond
@@ -134,6 +135,8 @@ def pixel_counts(
     A cup on a table lies inside the table's box: every ray to the cup enters the table's box first,
     so by the entry test alone the cup is never visible and never missed, and a cup taken away stays
     in the map for ever. A chair in front of a cabinet still hides it (its box ends before).
+    ``unread``: also return (last) the pixels that the rule of the visible count just returned
+    leaves unhidden but where the depth has no reading (a dark screen, a shiny basin).
 
     ``hide_needs_depth``: a box hides a ray only where the observed depth ends in it or before its
     far side (or there is no reading): a box is coarser than its object (a chair's box is solid
@@ -166,7 +169,8 @@ def pixel_counts(
         np.minimum.at(nearest, ray, np.where(stops if needs_depth else boxed, exit_ if whole_box else entry, np.inf))
         return entry <= nearest[ray]
 
-    seen = depth_ok & unhidden(hidden_by_whole_box, hide_needs_depth is True)
+    rule = (hidden_by_whole_box, hide_needs_depth is True)
+    seen = depth_ok & unhidden(*rule)
     scale = float(step * step)
 
     def per_box(flags):
@@ -179,10 +183,14 @@ def pixel_counts(
     if with_whole_box:
         # The same count as the first when both use the whole-box rule and the same depth rule.
         same = hidden_by_whole_box and (hide_needs_depth is True) == bool(hide_needs_depth)
-        counted = seen if same else depth_ok & unhidden(True, bool(hide_needs_depth))
+        if not same:
+            rule = (True, bool(hide_needs_depth))
+            counted = depth_ok & unhidden(*rule)
         out.append(out[0] if same else per_box(counted))
     if past_middle is not None:
         out.append(per_box(counted & (obs > 0.5 * (entry + exit_) + past_middle)))
+    if unread:
+        out.append(per_box(in_range & (obs <= 0) & unhidden(*rule)))
     return tuple(out)
 
 
