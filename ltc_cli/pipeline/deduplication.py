@@ -69,7 +69,8 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             # Defined box (which then replaces its box).
             wide = too_wide(top, boxes.size, max_width)
             part = np.ones(m, dtype=bool) if defined is None else ~np.asarray(defined, dtype=bool)
-            blocked = np.where(vol[:, None] >= vol[None, :], wide[:, None] & part[None, :], wide[None, :] & part[:, None])
+            blocked = np.where(vol[:, None] >= vol[None, :], wide[:, None] & part[None, :],
+                               wide[None, :] & part[:, None])
             contained &= ~(blocked & (top[:, None] != top[None, :]))
     halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the other-class caps
     pairs = []
