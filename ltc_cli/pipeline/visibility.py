@@ -135,14 +135,15 @@ def pixel_counts(
     A cup on a table lies inside the table's box: every ray to the cup enters the table's box first,
     so by the entry test alone the cup is never visible and never missed, and a cup taken away stays
     in the map for ever. A chair in front of a cabinet still hides it (its box ends before).
-    ``unread``: also return (last) the pixels that the rule of the visible count just returned
-    leaves unhidden but where the depth has no reading (a dark screen, a shiny basin).
 
     ``hide_needs_depth``: a box hides a ray only where the observed depth ends in it or before its
     far side (or there is no reading): a box is coarser than its object (a chair's box is solid
     where its back is slats and air), and where the camera saw past the box, nothing in it hid
     what lies beyond. Without it, a cup taken from a table behind a chair's box was never seen to
     be gone (issue 9, sixth round). ``"absence"``: for the whole-box count only.
+
+    ``unread``: also return (last) the pixels that the rule of the visible count returned just
+    before leaves unhidden but where the depth has no reading (a dark screen, a shiny basin).
     """
     m = len(boxes)
     if m == 0:
@@ -169,8 +170,8 @@ def pixel_counts(
         np.minimum.at(nearest, ray, np.where(stops if needs_depth else boxed, exit_ if whole_box else entry, np.inf))
         return entry <= nearest[ray]
 
-    rule = (hidden_by_whole_box, hide_needs_depth is True)
-    seen = depth_ok & unhidden(*rule)
+    shown = unhidden(hidden_by_whole_box, hide_needs_depth is True)  # also the unread count's rule
+    seen = depth_ok & shown
     scale = float(step * step)
 
     def per_box(flags):
@@ -184,13 +185,13 @@ def pixel_counts(
         # The same count as the first when both use the whole-box rule and the same depth rule.
         same = hidden_by_whole_box and (hide_needs_depth is True) == bool(hide_needs_depth)
         if not same:
-            rule = (True, bool(hide_needs_depth))
-            counted = depth_ok & unhidden(*rule)
+            shown = unhidden(True, bool(hide_needs_depth))
+            counted = depth_ok & shown
         out.append(out[0] if same else per_box(counted))
     if past_middle is not None:
         out.append(per_box(counted & (obs > 0.5 * (entry + exit_) + past_middle)))
     if unread:
-        out.append(per_box(in_range & (obs <= 0) & unhidden(*rule)))
+        out.append(per_box(in_range & (obs <= 0) & shown))
     return tuple(out)
 
 
