@@ -17,7 +17,8 @@ from ltc_cli.pipeline.integration import (
 
 class BoxIntegration:
     """The integration step of :class:`~ltc_cli.pipeline.mapper.Mapper` (it provides ``map``,
-    ``cfg``, ``rates``, ``index``, ``session``, ``_moves`` and the helpers these methods call)."""
+    ``cfg``, ``per_class``, ``rates``, ``index``, ``session``, ``_moves`` and the helpers these methods
+    call)."""
 
     def _integrate(self, row, det_box: Box, s_det, frame_index, frame_key) -> None:
         """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3."""
@@ -56,7 +57,7 @@ class BoxIntegration:
         the box ``partial_outgrow`` grows from a partial one reaching beyond a Defined one, unless
         that box takes in an active object of another class (:func:`takes_in`); ``rows`` are the
         objects being shaped."""
-        outgrow = self._outgrow[top]
+        outgrow = self.per_class.outgrow[top]
         if outgrow is None or obs.defined == obj.defined:
             return plain
         grown = integrate_box(obs, obj, w_obs, w_obj, self.cfg["integration"]["erosion"],

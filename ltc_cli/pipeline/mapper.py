@@ -22,6 +22,7 @@ from ltc_cli.pipeline.association import (
     match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, unlike_heights,
     within_reach,
 )
+from ltc_cli.pipeline.class_settings import ClassSettings
 from ltc_cli.pipeline.integration import fuse_scores
 from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
@@ -64,14 +65,7 @@ class Mapper(InstanceMerging, BoxIntegration):
         active = smap.active_rows()
         self.index.build(active, t.center[active], t.size[active])
         self.flags = ClassFlags.from_settings(smap.classes, config)
-        shares = config["association"].get("partial_adjoin_share") or {}
-        self._adjoin_share = np.array([float(shares.get(c, 0.0)) for c in smap.classes] + [0.0])
-        widths = config["association"]["container_max_width"] or {}
-        self._container_width = np.array([float(widths.get(c, np.inf)) for c in smap.classes] + [np.inf])
-        outgrow = config["integration"]["partial_outgrow"] or {}
-        self._outgrow = [outgrow.get(c) for c in smap.classes] + [None]
-        fixtures = set(config["maintenance"]["fixture_classes"] or [])
-        self._fixture = np.array([c in fixtures for c in smap.classes] + [False])
+        self.per_class = ClassSettings.from_settings(smap.classes, config)
         turn = config["integration"]["partial_outgrow_turn"]
         self._outgrow_turn = None if turn is None else np.radians(turn)
         self.rates = DetectionRates(smap, config["maintenance"])
@@ -204,7 +198,7 @@ class Mapper(InstanceMerging, BoxIntegration):
             return -1, False
         a_cfg, t = self.cfg["association"], self.map.objects
         reach = match_reach(self.metric, a_cfg)
-        share = float(self._adjoin_share[det_class]) if a_cfg["partial_adjoin_gap"] is not None else 0.0
+        share = float(self.per_class.adjoin_share[det_class]) if a_cfg["partial_adjoin_gap"] is not None else 0.0
         if reach is not None and rows.size > 8:  # only those that can match decide (the same decision)
             # An adjoining gap of share x the longer side is within 2 share x the half diagonals.
             grow = 1.0 + 2.0 * share
@@ -295,7 +289,7 @@ class Mapper(InstanceMerging, BoxIntegration):
         # A policy that never removes (the static world) says so with ``removes = False``.
         if absent is not None and getattr(self.policy, "removes", True):
             # Built-in things go by absent_quiet_sessions of silence only, never by one session's.
-            views = np.where(self._fixture[top_class(t.scores)], np.inf, absent)
+            views = np.where(self.per_class.fixture[top_class(t.scores)], np.inf, absent)
             old = np.flatnonzero(absent_in_session(
                 t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
                 views, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"] or absent,

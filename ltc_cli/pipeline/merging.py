@@ -22,7 +22,7 @@ from ltc_cli.pipeline.maintenance import tentative, union_span
 
 class InstanceMerging:
     """The merge step of :class:`~ltc_cli.pipeline.mapper.Mapper` (it provides ``map``, ``cfg``,
-    ``metric``, ``rates``, ``index``, ``session`` and the helpers these methods call)."""
+    ``metric``, ``per_class``, ``rates``, ``index``, ``session`` and the helpers these methods call)."""
 
     def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
         """Instance de-duplication: in-view map objects that now match each other become one."""
@@ -34,7 +34,8 @@ class InstanceMerging:
         pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
                             match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session,
                             t.scores[rows], self.cfg["integration"]["defined_part_volume"],
-                            self._adjoin_share if a_cfg["merge_adjoining"] else None, self._container_width)
+                            self.per_class.adjoin_share if a_cfg["merge_adjoining"] else None,
+                            self.per_class.container_width)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
                                                                           if key < PIECES_KEY}
