@@ -22,7 +22,7 @@ ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 # Columns added after format 1: a map written before them reads them as zeros.
 ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session", "clear_since_det",
-                           "det_view", "det_views", "through_since_det", "n_clear_det", "det_span"})
+                           "det_view", "det_views", "through_since_det", "n_clear_det", "det_span", "n_flat"})
 
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
@@ -57,6 +57,8 @@ COLUMNS = {
     # Of those, the views that saw through the object's box (depth past its middle): the absence
     # rule's evidence that its place is empty (maintenance.absent_through_views).
     "through_since_det": ((), np.int64),
+    # Detections dropped as pictures flat on a wall that fell in its box (pipeline/pictures.py).
+    "n_flat": ((), np.int64),
     # Camera position and forward axis (6) at the object's last detection from a new view, and how
     # many such distinct views detected it (maintenance.min_detection_views).
     "det_view": ((6,), np.float64),

@@ -8,13 +8,13 @@ whichever process made them. It needs the settings and the map's class list only
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ltc_cli.map.model import top_class
 from ltc_cli.pipeline.modeling import ModeledDetections, model_detections
-from ltc_cli.pipeline.pictures import flat_on_wall
+from ltc_cli.pipeline.pictures import flat_on_wall, mask_point
 from ltc_cli.types import Intrinsics
 
 
@@ -88,13 +88,17 @@ class FrameModel:
 
     detections: how many detections the frame gave (over the map's classes, moving ones included);
     scores: the class vectors (C+1,) of the detections kept (moving classes dropped);
-    modeled: their boxes, ``modeled.source`` indexing ``scores``; seconds: the time it took.
+    modeled: their boxes, ``modeled.source`` indexing ``scores``; seconds: the time it took;
+    flat_xyz (P, 3), flat_top (P,): a map-frame point and the top class of each detection dropped as
+    a picture flat on a wall (``picture_flatness``), for the map objects they fall in.
     """
 
     detections: int
     scores: list[np.ndarray]
     modeled: ModeledDetections
     seconds: float = 0.0
+    flat_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    flat_top: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
 
 def in_map_classes(detections, class_mapper) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -122,11 +126,15 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     if flags.moving[top].any():  # people and animals are never map objects
         keep = np.flatnonzero(~flags.moving[top])
         masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
+    flat_xyz, flat_top = np.zeros((0, 3)), np.zeros(0, dtype=int)
     flatness = config["modeling"]["picture_flatness"]
     if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
         noise = config["modeling"]["picture_depth_noise"] or 0.0
-        keep = [i for i, m in enumerate(masks)
-                if not flat_on_wall(m, depth_m, intr, T_map_camera, flatness, noise_per_m2=noise)]
+        flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, noise_per_m2=noise) for m in masks])
+        points = [mask_point(masks[i], depth_m, intr, T_map_camera) for i in np.flatnonzero(flat)]
+        flat_top = np.array([t for t, p in zip(top[flat], points) if p is not None], dtype=int)
+        flat_xyz = np.array([p for p in points if p is not None]).reshape(-1, 3)
+        keep = np.flatnonzero(~flat)
         masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
     modeled = model_detections(masks, depth_m, intr, T_map_camera, config["modeling"], depth_range,
                                grounded=flags.grounded[top], floor_z=floor_z,
@@ -159,7 +167,7 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     if flags.whole_width is not None and (flags.whole_width > 0).any() and len(modeled.source):
         box_top = np.array([int(top_class(scores[int(i)])) for i in modeled.source], dtype=int)
         modeled.defined = not_whole(modeled.defined, longer, flags.whole_width[box_top])
-    return FrameModel(detections, scores, modeled)
+    return FrameModel(detections, scores, modeled, flat_xyz=flat_xyz, flat_top=flat_top)
 
 
 def weighted_detections(weighted_classes: np.ndarray | None, top: np.ndarray) -> np.ndarray | None:

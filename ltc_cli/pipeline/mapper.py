@@ -31,7 +31,8 @@ from ltc_cli.pipeline.maintenance import (
     non_detection_vectors, other_leads, removed_unconfirmed, seen_empty, same_class_overlap, span_views,
     tentative, unconfirmed, view_counts, widen_span,
 )
-from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, unconfirmed_detail
+from ltc_cli.pipeline.pictures import PICTURE_MARGIN, is_picture, picture_hits
+from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, picture_detail, unconfirmed_detail
 from ltc_cli.pipeline.rates import DetectionRates
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy
@@ -131,6 +132,9 @@ class Mapper(InstanceMerging, BoxIntegration):
             stage1 = model_frame(masks, scores, depth_m, T_map_camera, intr, depth_range, self.cfg, self.flags,
                                  floor_z)
         res = FrameResult(detections=stage1.detections)
+        if len(stage1.flat_xyz) and self.cfg["modeling"]["picture_object_share"] is not None:
+            res.removed += self._pictures(stage1, T_map_camera, T_camera_map, intr, depth_range[1], frame_index,
+                                          frame_key)
         scores, modeled = stage1.scores, stage1.modeled
         res.boxes = len(modeled.source)
         t1 = clock()
@@ -191,6 +195,20 @@ class Mapper(InstanceMerging, BoxIntegration):
         res.timings = {"modeling": t1 - t0, "association": t_assoc, "integration": t2 - t1 - t_assoc,
                        "maintenance": t3 - t2, "merge": t4 - t3}
         return res
+
+    def _pictures(self, stage1: FrameModel, T_map_camera, T_camera_map, intr, max_depth, frame_index, frame_key):
+        """The frame's detections dropped as flat on a wall count on the in-view objects of their
+        class they fall in; objects that are pictures by :func:`is_picture` go. Returns how many."""
+        t, p_cfg = self.map.objects, self.cfg["modeling"]
+        rows = self._candidates(T_map_camera, T_camera_map, intr, max_depth)
+        hits = picture_hits(t.center[rows], t.yaw[rows], t.size[rows], top_class(t.scores[rows]), stage1.flat_xyz,
+                            stage1.flat_top, PICTURE_MARGIN)
+        t.cols["n_flat"][rows] += hits
+        gone = rows[(hits > 0) & is_picture(t.n_det[rows], t.n_flat[rows], p_cfg["picture_object_share"],
+                                            p_cfg["picture_min_views"])]
+        for row in gone:
+            self._remove(row, frame_index, frame_key, picture_detail(t.n_flat[row], t.n_det[row]))
+        return len(gone)
 
     def _associate(self, det: Boxes, det_class: int, rows: np.ndarray, det_defined: bool = True) -> tuple[int, bool]:
         """(row or -1, matched by containment) of one detection among candidate rows (stage 2)."""

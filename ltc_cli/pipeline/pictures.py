@@ -13,6 +13,10 @@ import numpy as np
 
 from ltc_cli.types import Intrinsics
 
+#: Metres a flat detection's point may lie outside the box of the object it counts on: the point is
+#: on the wall, and a poster's box, made from its views that were not judged flat, stands off it.
+PICTURE_MARGIN = 0.1
+
 
 def _points_map(v: np.ndarray, u: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray):
     """Map-frame points (N, 3) of pixels (v, u) with a depth reading."""
@@ -95,3 +99,41 @@ def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_
     if noise_per_m2 > 0:
         return bool(abs(np.median(d)) <= tolerance)
     return bool(np.median(np.abs(d)) <= tolerance and np.mean(d > tolerance) < 0.5)
+
+
+def mask_point(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray,
+               step: int = 4) -> np.ndarray | None:
+    """The median map-frame point (3,) of a mask's pixels with a depth reading, on a grid of every
+    ``step``-th row and column (every pixel when the grid misses the mask); None without a reading."""
+    v, u = np.nonzero(mask[::step, ::step])
+    v, u = v * step, u * step
+    if v.size == 0:
+        v, u = np.nonzero(mask)
+    points = _points_map(v, u, depth_m, intr, T_map_camera)
+    return np.median(points, axis=0) if len(points) else None
+
+
+def picture_hits(centers: np.ndarray, yaws: np.ndarray, sizes: np.ndarray, top: np.ndarray,
+                 points_xyz: np.ndarray, point_top: np.ndarray, margin: float) -> np.ndarray:
+    """(M,) int: for each map object (boxes by centers (M, 3), yaws (M,), sizes (M, 3); top classes
+    (M,)), how many of the frame's flat detections of its class (points_xyz (P, 3): a point of each,
+    point_top (P,)) lie in its box grown by ``margin`` metres on every side.
+
+    A poster the detector takes for a tv from some views is judged flat from others; the flat views
+    were dropped one by one, and the others made an object. Counted on the object, they say what it is.
+    """
+    if len(centers) == 0 or len(points_xyz) == 0:
+        return np.zeros(len(centers), dtype=np.int64)
+    d = points_xyz[None, :, :] - centers[:, None, :]  # (M, P, 3) in map axes
+    c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
+    local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1], d[..., 2]], axis=-1)
+    inside = np.all(np.abs(local) <= sizes[:, None, :] / 2 + margin, axis=-1)
+    inside &= top[:, None] == np.asarray(point_top)[None, :]
+    return inside.sum(axis=1).astype(np.int64)
+
+
+def is_picture(n_det: np.ndarray, n_flat: np.ndarray, share: float, min_flat: int) -> np.ndarray:
+    """(M,) bool: objects of which at least ``min_flat`` detections, and at least ``share`` of all
+    (those that made the object and the flat ones), lay flat on a wall."""
+    n_det, n_flat = np.asarray(n_det), np.asarray(n_flat)
+    return (n_flat >= min_flat) & (n_flat >= share * (n_det + n_flat))

@@ -29,3 +29,9 @@ def other_leads_detail(scores: np.ndarray, classes: list[str], n_nondet: int, n_
     top = int(np.asarray(scores)[:-1].argmax())
     return (f"other {scores[-1]:.3f} > {classes[top]} {scores[top]:.3f} after "
             f"{plural(int(n_nondet), 'non-detection')} and {plural(int(n_det), 'detection')}")
+
+
+def picture_detail(n_flat: int, n_det: int) -> str:
+    """The event log's reason for a removal as a picture on a wall (starts "picture:")."""
+    return (f"picture: {plural(int(n_flat), 'detection')} of it lay flat on the wall around "
+            f"{'it' if int(n_flat) == 1 else 'them'}, beside {plural(int(n_det), 'other')}")
