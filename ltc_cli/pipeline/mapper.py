@@ -1,10 +1,10 @@
 """The mapper: runs the four stages on each frame and applies their decisions to the map.
 
 The stages (modeling.py, association.py, integration.py, maintenance.py) are pure functions over
-arrays that return decisions; this file (with its parts integrating.py and merging.py) only feeds
-them, writes their results into the object table, keeps the grid index current, and logs every
-change in the event log. No I/O: the store saves and
-loads the :class:`SemanticMap`; ingest drives :class:`Mapper` frame by frame.
+arrays that return decisions; this file (with its parts integrating.py, merging.py and pruning.py)
+only feeds them, writes their results into the object table, keeps the grid index current, and
+logs every change in the event log. No I/O: the store saves and loads the :class:`SemanticMap`;
+ingest drives :class:`Mapper` frame by frame.
 """
 
 from __future__ import annotations
@@ -26,13 +26,13 @@ from ltc_cli.pipeline.class_settings import ClassSettings
 from ltc_cli.pipeline.integration import fuse_scores
 from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
+from ltc_cli.pipeline.pruning import SessionPruning
 from ltc_cli.pipeline.maintenance import (
-    absent_in_session, camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view,
-    non_detection_vectors, other_leads, removed_unconfirmed, seen_empty, same_class_overlap, span_views,
-    tentative, unconfirmed, view_counts, widen_span,
+    camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view, non_detection_vectors,
+    other_leads, seen_empty, span_views, tentative, view_counts, widen_span,
 )
 from ltc_cli.pipeline.pictures import PICTURE_MARGIN, is_picture, picture_hits
-from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, picture_detail, unconfirmed_detail
+from ltc_cli.pipeline.reasons import other_leads_detail, picture_detail
 from ltc_cli.pipeline.rates import DetectionRates
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, model_frame
 from ltc_cli.protocols import Metric, Policy
@@ -52,7 +52,7 @@ class FrameResult:
     timings: dict = field(default_factory=dict)
 
 
-class Mapper(InstanceMerging, BoxIntegration):
+class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
     """Runs the four stages of LTC-Mapping frame after frame on a :class:`SemanticMap`."""
 
     def __init__(self, smap: SemanticMap, config: Settings, metric: Metric, policy: Policy, session: int = 0):
@@ -283,62 +283,6 @@ class Mapper(InstanceMerging, BoxIntegration):
         # empty: that is no detector's silence, and a part of the box is enough to say so.
         clear_absent = (vis_absent >= need) | (through & ~held & (vis_absent >= need_through))
         return missed, vis_px >= need, empty, clear_absent, through, held
-
-    def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
-                          min_share: float | None = None) -> int:
-        """End of a session: remove the tentative objects created in it that too few detections saw:
-        fewer than ``min_detections``, or (with ``min_share``) fewer than that share of the frames
-        in which it was clearly visible (:func:`~ltc_cli.pipeline.maintenance.unconfirmed`).
-
-        As a tracker confirms a track after M hits in N chances: a detector's one-off false positive
-        (a confused class, a split mask, a blob on a wall) is seen once, a real object in a
-        recording is seen again. Objects of earlier sessions are not touched. Returns how many were
-        removed.
-        """
-        t, m_cfg = self.map.objects, self.cfg["maintenance"]
-        min_views = m_cfg["min_detection_views"]
-        rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
-        seen_from = self._confirm_views()
-        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, seen_from[rows], min_views)]
-        if m_cfg["confirm_across_sessions"] and len(rows):
-            rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key)
-        absent = m_cfg["absent_after_views"]
-        gone = 0
-        # A policy that never removes (the static world) says so with ``removes = False``.
-        if absent is not None and getattr(self.policy, "removes", True):
-            # Built-in things go by absent_quiet_sessions of silence only, never by one session's.
-            views = np.where(self.per_class.fixture[top_class(t.scores)], np.inf, absent)
-            old = np.flatnonzero(absent_in_session(
-                t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
-                views, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"] or absent,
-                t.through_since_det, m_cfg["absent_through_views"]))
-            for row in old:
-                self._remove(row, frame_index, frame_key, absent_detail(
-                    t.clear_in_session[row], t.clear_since_det[row],
-                    t.through_since_det[row] if m_cfg["absent_through_views"] is not None else None))
-            gone = len(old)  # removed once, as absent (not also as unconfirmed)
-        for row in rows:
-            self._remove(row, frame_index, frame_key,
-                         unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share,
-                                            seen_from[row], min_views))
-        self.rates.settle()
-        return len(rows) + gone
-
-    def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key):
-        """``rows`` less those an earlier session's unconfirmed object confirms
-        (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`), which stay (logged)."""
-        t = self.map.objects
-        weak = unconfirmed(t.n_det, t.n_clear, min_detections, min_share, seen_from, min_views)
-        old = np.flatnonzero(removed_unconfirmed(t.status, t.first_session, t.last_session, weak, self.session, REMOVED))
-        top, boxes = top_class(t.scores), t.boxes(rows)
-        match = same_class_overlap(boxes, top[rows], t.boxes(old), top[old])
-        # A thing already in the map under its class is not confirmed again beside it (a duplicate).
-        live = np.setdiff1d(np.flatnonzero(t.status == ACTIVE), rows)
-        match[same_class_overlap(boxes, top[rows], t.boxes(live), top[live]) >= 0] = -1
-        for row, k in zip(rows[match >= 0], match[match >= 0]):
-            self._log(frame_index, frame_key, "updated", row + 1,
-                      detail=f"confirmed: object {old[k] + 1} stood here, unconfirmed, in session {t.last_session[old[k]]}")
-        return rows[match < 0]
 
     # -- applying decisions ------------------------------------------------------------------
     def _remove(self, row, frame_index, frame_key, detail) -> None:

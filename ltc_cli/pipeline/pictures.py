@@ -3,7 +3,9 @@
 A detector takes a poster or a painting for a tv (or a screen for a picture of one) from every view
 of it, so the confirmation rules cannot tell it from furniture. Depth can: the pixels of a picture
 lie on the same vertical plane as the wall around it, while a tv, a cabinet or a plant stands out
-from what is behind it. Pure numpy; stage 1 (frame_modeling.py) drops such detections.
+from what is behind it. Pure numpy; stage 1 (frame_modeling.py) drops such detections, and the
+mapper counts them on the objects they fall in (:func:`picture_hits`): an object made from a
+poster's other views goes when enough of its detections were flat (:func:`is_picture`).
 """
 
 from __future__ import annotations

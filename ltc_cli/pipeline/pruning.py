@@ -1,0 +1,74 @@
+"""The end of a session (DESIGN.md 1.4): the tentative objects that too few detections confirmed,
+and those the absence rule finds gone, leave the map. A part of
+:class:`~ltc_cli.pipeline.mapper.Mapper`, kept in its own file: the decisions come from
+maintenance.py; these methods apply them to the object table and log them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ltc_cli.map.model import ACTIVE, REMOVED, top_class
+from ltc_cli.pipeline.maintenance import absent_in_session, removed_unconfirmed, same_class_overlap, unconfirmed
+from ltc_cli.pipeline.reasons import absent_detail, unconfirmed_detail
+
+
+class SessionPruning:
+    """The end-of-session step of :class:`~ltc_cli.pipeline.mapper.Mapper` (it provides ``map``,
+    ``cfg``, ``per_class``, ``policy``, ``rates``, ``session`` and the helpers these methods call)."""
+
+    def prune_unconfirmed(self, min_detections: int, frame_index: int, frame_key: str,
+                          min_share: float | None = None) -> int:
+        """End of a session: remove the tentative objects created in it that too few detections saw:
+        fewer than ``min_detections``, or (with ``min_share``) fewer than that share of the frames
+        in which it was clearly visible (:func:`~ltc_cli.pipeline.maintenance.unconfirmed`).
+
+        As a tracker confirms a track after M hits in N chances: a detector's one-off false positive
+        (a confused class, a split mask, a blob on a wall) is seen once, a real object in a
+        recording is seen again. Objects of earlier sessions are not touched. Returns how many were
+        removed.
+        """
+        t, m_cfg = self.map.objects, self.cfg["maintenance"]
+        min_views = m_cfg["min_detection_views"]
+        rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
+        seen_from = self._confirm_views()
+        rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, seen_from[rows], min_views)]
+        if m_cfg["confirm_across_sessions"] and len(rows):
+            rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key)
+        absent = m_cfg["absent_after_views"]
+        gone = 0
+        # A policy that never removes (the static world) says so with ``removes = False``.
+        if absent is not None and getattr(self.policy, "removes", True):
+            # Built-in things go by absent_quiet_sessions of silence only, never by one session's.
+            views = np.where(self.per_class.fixture[top_class(t.scores)], np.inf, absent)
+            old = np.flatnonzero(absent_in_session(
+                t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
+                views, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"] or absent,
+                t.through_since_det, m_cfg["absent_through_views"]))
+            for row in old:
+                self._remove(row, frame_index, frame_key, absent_detail(
+                    t.clear_in_session[row], t.clear_since_det[row],
+                    t.through_since_det[row] if m_cfg["absent_through_views"] is not None else None))
+            gone = len(old)  # removed once, as absent (not also as unconfirmed)
+        for row in rows:
+            self._remove(row, frame_index, frame_key,
+                         unconfirmed_detail(t.n_det[row], t.n_clear[row], min_detections, min_share,
+                                            seen_from[row], min_views))
+        self.rates.settle()
+        return len(rows) + gone
+
+    def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key):
+        """``rows`` less those an earlier session's unconfirmed object confirms
+        (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`), which stay (logged)."""
+        t = self.map.objects
+        weak = unconfirmed(t.n_det, t.n_clear, min_detections, min_share, seen_from, min_views)
+        old = np.flatnonzero(removed_unconfirmed(t.status, t.first_session, t.last_session, weak, self.session, REMOVED))
+        top, boxes = top_class(t.scores), t.boxes(rows)
+        match = same_class_overlap(boxes, top[rows], t.boxes(old), top[old])
+        # A thing already in the map under its class is not confirmed again beside it (a duplicate).
+        live = np.setdiff1d(np.flatnonzero(t.status == ACTIVE), rows)
+        match[same_class_overlap(boxes, top[rows], t.boxes(live), top[live]) >= 0] = -1
+        for row, k in zip(rows[match >= 0], match[match >= 0]):
+            self._log(frame_index, frame_key, "updated", row + 1,
+                      detail=f"confirmed: object {old[k] + 1} stood here, unconfirmed, in session {t.last_session[old[k]]}")
+        return rows[match < 0]
