@@ -60,13 +60,14 @@ def phantoms_of(lap_dir: Path) -> list[dict]:
 
 
 def removed_by_reason(smap) -> dict:
-    """{"eq4" | "absent" | "unconfirmed": [map objects as removed]} from the event log."""
+    """{"eq4" | "absent" | "picture" | "unconfirmed": [map objects as removed]} from the event log."""
     reasons = {}
     for e in smap.events:
         if e.kind != "removed":
             continue
         d = str(e.detail or "")
-        reason = "absent" if d.startswith("other: clearly") else "eq4" if d.startswith("other") else "unconfirmed"
+        reason = "absent" if d.startswith("other: clearly") else "eq4" if d.startswith("other") \
+            else "picture" if d.startswith("picture") else "unconfirmed"
         reasons.setdefault(reason, []).append(e.object_id)
     return {k: map_objects(smap, np.array(sorted(set(v)), dtype=np.int64) - 1) for k, v in reasons.items()}
 
@@ -99,7 +100,7 @@ def run_house(h: Path, laps: int, args):
             rem = removed_by_reason(smap)
             fp = false_positive_causes(res, objs, gt["objects"], phantoms)
             fn = missed_causes(res, objs, gt["objects"], seen, rem.get("eq4", []), rem.get("absent", []),
-                               rem.get("unconfirmed", []))
+                               rem.get("unconfirmed", []), rem.get("picture", []))
             kept = None if before is None else ids_kept(before, res)
             ids = {} if kept is None else id_change_causes(before, res, status_name(smap), kept["lost_gt_ids"])
             names = {**{f"m{o['id']}": o["class"] for o in objs}, **{f"g{o['id']}": o["class"] for o in gt["objects"]}}

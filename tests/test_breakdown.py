@@ -48,6 +48,7 @@ def test_missed_objects_by_cause():
     assert missed_causes(res, MAP, GT, seen, removed_eq4=removed_cup)[3] == "deleted_eq4"
     assert missed_causes(res, MAP, GT, seen, removed_absent=removed_cup)[3] == "deleted_absent"
     assert missed_causes(res, MAP, GT, seen, removed_unconfirmed=removed_cup)[3] == "unconfirmed"
+    assert missed_causes(res, MAP, GT, seen, removed_picture=removed_cup)[3] == "deleted_picture"
     # One chair box over two chairs: the second chair is "merged".
     two = GT + [obj(7, "chair", 0.45, 0.5, seen=900)]
     wide = [obj(11, "chair", 0.2, 1.0)]

@@ -13,7 +13,7 @@ Causes, each object counted once, in this order:
   XY IoU > 0.25, ``misplaced``: a match at some overlap but not above 0.25.
 - missed object (seen, unmatched at any overlap): ``deleted`` (maintenance removed a map object on
   it: ``deleted_eq4`` by eq. 4 non-detections, ``deleted_absent`` by the end-of-session absence
-  rule), ``merged`` (a map object of its class that matches another object covers it), ``mislabel``
+  rule, ``deleted_picture`` as a picture on a wall), ``merged`` (a map object of its class that matches another object covers it), ``mislabel``
   (a map object of another class stands on it, XY IoU > 0.1), ``unconfirmed`` (it was mapped, then pruned as
   unconfirmed), ``never`` (no map object ever stood on it); at XY IoU > 0.25, ``loose``: matched at
   some overlap but not above 0.25.
@@ -34,7 +34,7 @@ from ltc_cli.tools.evaluate import as_eval_object
 from ltc_cli.tools.lap_history import deleted_while_present, object_arrays
 
 FP_CAUSES = ("phantom", "ghost", "duplicate", "mislabel", "other")
-FN_CAUSES = ("deleted_eq4", "deleted_absent", "merged", "mislabel", "unconfirmed", "never")
+FN_CAUSES = ("deleted_eq4", "deleted_absent", "deleted_picture", "merged", "mislabel", "unconfirmed", "never")
 ID_CAUSES = ("removed", "merged", "rematched", "unmatched")
 
 
@@ -77,7 +77,7 @@ def false_positive_causes(res: dict, map_objs, gt_objs, phantoms=(), phantom_mar
 
 
 def missed_causes(res: dict, map_objs, gt_objs, seen_ids, removed_eq4=(), removed_absent=(),
-                  removed_unconfirmed=()) -> dict:
+                  removed_unconfirmed=(), removed_picture=()) -> dict:
     """{ground-truth id: cause} for the seen objects unmatched at any overlap, and "loose" for those
     matched at some overlap but not at XY IoU > 0.25. ``removed_*``: the removed map objects (with the
     box they had) by the reason of their removal."""
@@ -87,6 +87,7 @@ def missed_causes(res: dict, map_objs, gt_objs, seen_ids, removed_eq4=(), remove
     lap_gts = list(gts.values())
     by_eq4 = set(deleted_while_present([as_eval_object(o) for o in removed_eq4], lap_gts)["gt_ids"])
     by_absent = set(deleted_while_present([as_eval_object(o) for o in removed_absent], lap_gts)["gt_ids"])
+    by_picture = set(deleted_while_present([as_eval_object(o) for o in removed_picture], lap_gts)["gt_ids"])
     out = {}
     for gid in res["fn_ids"]:
         if gid not in seen_ids:
@@ -97,6 +98,8 @@ def missed_causes(res: dict, map_objs, gt_objs, seen_ids, removed_eq4=(), remove
             out[gid] = "deleted_eq4"
         elif gid in by_absent:
             out[gid] = "deleted_absent"
+        elif gid in by_picture:
+            out[gid] = "deleted_picture"
         elif any(m.cls == g.cls and m.id in matched_map for m in on):
             out[gid] = "merged"
         elif _overlaps([m for m in on if m.cls != g.cls], [g], min_iou=MISLABEL_IOU).any():
