@@ -1,7 +1,7 @@
-"""association.container_max_width (issue 9, twenty-fifth round): a map object of a class whose
-footprint's longer side is over the class's bound is no single object of it, and never takes in a
-partial object of another class by containment; a Defined one still joins. Values worked out by
-hand."""
+"""association.container_max_width (issue 9, 25th and 26th rounds): a map object of a class whose
+footprint's longer side is over the class's bound is no single object of it, and never merges with
+a partial object of another class by containment, inside or around it; a Defined one still joins.
+Values worked out by hand."""
 
 import numpy as np
 import pytest
@@ -59,3 +59,29 @@ def test_a_too_wide_object_takes_in_no_partial_object_of_another_class(chair_siz
         # By containment first (eq. 2 is far over the 0.25 m threshold); the armchair's footprint
         # also overlaps the table's by XY IoU 0.678 / 1.265 = 0.54, a pair of two labels after it.
         assert pairs[0][0] < 1e6
+
+
+@pytest.mark.parametrize("chair_width, overrides, merge", [
+    # A Defined 1.45 x 0.53 x 0.94 "chair" (two chairs) at (0, 0.5): footprint x [-0.725, 0.725],
+    # y [0.235, 0.765], inside the partial 1.83 x 1.97 x 0.86 table's [-0.915, 0.915] x [-0.985,
+    # 0.985]; 0.86 / 0.94 = 0.915 of it inside (>= 0.7), of 0.7224 / 3.1004 = 0.233 of its volume
+    # (>= 0.1). Too wide: it does not go into the partial table.
+    (1.45, [], False),
+    (1.45, ["association.container_max_width=null"], True),
+    # One chair 1.0 m wide (0.498 / 3.1004 = 0.16 of the table's volume) is no blob: the rule
+    # leaves it to containment as before.
+    (1.0, [], True),
+])
+def test_a_too_wide_object_goes_into_no_partial_object_of_another_class(chair_width, overrides, merge):
+    cfg = load_config(None, overrides)
+    a_cfg = cfg["association"]
+    boxes = Boxes(np.array([[0.0, 0.5, 0.47], [0.0, 0.0, 0.43]]), np.zeros(2),
+                  np.array([[chair_width, 0.53, 0.94], [1.83, 1.97, 0.86]]), np.ones((2, 8), bool))
+    metric = plugins.get("metrics", "vertex").factory(a_cfg)
+    widths = a_cfg["container_max_width"] or {}
+    bound = np.array([float(widths.get(c, np.inf)) for c in CLASSES] + [np.inf])
+    pairs = merge_pairs(boxes, np.array([0, 1]), metric.distance, a_cfg, None, np.array([True, False]),
+                        np.zeros(2, int), 0, None, None, None, bound)
+    assert {(a, b) for _, a, b in pairs} == ({(0, 1)} if merge else set())
+    if merge:
+        assert pairs[0][0] < 1e6  # by containment (eq. 2 is far over the other-class threshold)

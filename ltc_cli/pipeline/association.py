@@ -230,11 +230,13 @@ def too_wide(top: np.ndarray, size: np.ndarray, max_width: np.ndarray | None) ->
     ``max_width`` (C+1,) of their class (inf: no bound; None: none is), so that they are no single
     object of their class.
 
-    Such a box never takes in a partial box of another class by containment: a partial "chair"
+    Such a box never joins a partial box of another class by containment: a partial "chair"
     1.85 x 1.6 m is the pieces of two chairs side by side, joined under the detector's "couch" for
     one of them and drift, and the partial dining table inside it is a table, not that chair under
     another label (second held-out house 302: the table's object went into the blob and the table
-    was lost). A Defined box inside it still joins, and replaces its box (DESIGN.md 1.3)."""
+    was lost). Nor does it go into one: a Defined 1.45 m "chair" of two chairs inside a partial table
+    is not the table's part (house 301: its box replaced the table's). A Defined box of another class
+    inside it still joins, and replaces its box (DESIGN.md 1.3)."""
     if max_width is None:
         return np.zeros(len(top), dtype=bool)
     return size[:, :2].max(axis=1) > np.asarray(max_width)[np.asarray(top)]

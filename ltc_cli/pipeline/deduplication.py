@@ -46,8 +46,9 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     object under two labels shares its ground, and a whole cup and a whole mouse 26 cm apart on a
     desk came under eq. 2's other-class threshold over the six vertices both showed.
 
-    ``max_width`` (C+1,): per class, the widest footprint that takes in a partial object of another
-    class by containment (:func:`~ltc_cli.pipeline.association.too_wide`; None: any).
+    ``max_width`` (C+1,): per class, the widest footprint that joins a partial object of another
+    class by containment, inside or around it (:func:`~ltc_cli.pipeline.association.too_wide`;
+    None: any).
     """
     m = len(boxes)
     if m < 2:
@@ -65,12 +66,11 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
         need = np.where(top[:, None] == top[None, :], need_same, other_ok)
         contained = inside >= need
         if max_width is not None:
-            # Of two boxes of other classes the larger one contains; a too wide one takes in only a
-            # Defined box (which then replaces its box).
+            # A too wide box joins a box of another class by containment only when that one is
+            # Defined (which then replaces its box), whichever of the two contains the other.
             wide = too_wide(top, boxes.size, max_width)
             part = np.ones(m, dtype=bool) if defined is None else ~np.asarray(defined, dtype=bool)
-            blocked = np.where(vol[:, None] >= vol[None, :], wide[:, None] & part[None, :],
-                               wide[None, :] & part[:, None])
+            blocked = (wide[:, None] & part[None, :]) | (wide[None, :] & part[:, None])
             contained &= ~(blocked & (top[:, None] != top[None, :]))
     halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the other-class caps
     pairs = []
