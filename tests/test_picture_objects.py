@@ -132,3 +132,15 @@ def test_flat_detections_elsewhere_or_with_the_setting_off_count_nothing():
     mapper, row = mapper_with_tv(cfg, n_det=4)
     poster_frames(mapper, 3)
     assert mapper.map.objects.n_flat[row] == 0 and mapper.map.objects.status[row] == ACTIVE
+
+
+def test_a_tv_on_the_wall_is_never_counted_as_a_picture():
+    """A wall-mounted screen 1 x 0.6 m standing 5 cm (or 3 cm) proud of the wall 4 m away: its
+    pixels lie 0.05 m off the wall's plane, over the fixed 0.025 m of the test of how far a
+    detection stands out. Modeled, and no flat point to count; a 1 cm poster of that size is flat."""
+    cfg = defaults()
+    flags = ClassFlags.from_settings(CLASSES, cfg)
+    for proud, flat in ((0.05, False), (0.03, False), (0.01, True)):
+        depth, masks = render([(4.0 - proud, 4.0, -0.5, 0.5, 0.9, 1.5)], wall_x=4.0)
+        stage1 = model_frame(masks, [tv_vector()], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags)
+        assert (len(stage1.flat_xyz), len(stage1.modeled.source)) == ((1, 0) if flat else (0, 1))
