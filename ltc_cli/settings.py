@@ -122,6 +122,7 @@ class MaintenanceSettings(TypedDict):
     absent_quiet_sessions: Optional[int]
     absent_quiet_views: Optional[int]
     fixture_classes: Optional[list[str]]
+    fixture_existence: bool
     absent_through_views: Optional[int]
     absent_through_share: float
     through_margin: float

@@ -164,6 +164,15 @@ def other_leads(scores: np.ndarray) -> np.ndarray:
     return scores.argmax(axis=1) == scores.shape[1] - 1
 
 
+def other_outweighs(scores: np.ndarray) -> np.ndarray:
+    """(M,) bool: objects whose `other` (last) entry exceeds all their classes (M, C+1) together:
+    the evidence says the thing is not there, not only that its leading label lost ground (a sink
+    the detector also calls toilet holds its evidence on two labels, and eq. 4's `other` overtakes
+    each of them long before both)."""
+    scores = np.atleast_2d(scores)
+    return scores[:, -1] > scores[:, :-1].sum(axis=1)
+
+
 def class_hit_counts(top: np.ndarray, n_clear: np.ndarray, n_clear_det: np.ndarray, n_classes: int):
     """(views (C,), hits (C,)) summed over objects by their top class: the frames in which each was
     clearly visible, and those of them in which it was detected."""

@@ -29,7 +29,7 @@ from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.pruning import SessionPruning
 from ltc_cli.pipeline.maintenance import (
     camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view, non_detection_vectors,
-    other_leads, seen_empty, span_views, tentative, view_counts, widen_span,
+    other_leads, other_outweighs, seen_empty, span_views, tentative, view_counts, widen_span,
 )
 from ltc_cli.pipeline.pictures import PICTURE_MARGIN, is_picture, picture_hits
 from ltc_cli.pipeline.reasons import other_leads_detail, picture_detail
@@ -344,7 +344,12 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         if m_cfg["tentative_until_end"] and tentative(t.first_session[row], t.n_det[row], self.session,
                                                       m_cfg["min_detections"]):
             return False  # the confirmation rule judges it at the session's end
-        if not bool(np.asarray(self._removals(s[None]))[0]):
+        remove = bool(np.asarray(self._removals(s[None]))[0])
+        if remove and m_cfg["fixture_existence"] and self.per_class.fixture[int(top_class(s))]:
+            # A built-in thing is not carried away: misses count against its being there, not
+            # against its leading label alone.
+            remove = bool(other_outweighs(s[None])[0])
+        if not remove:
             return False
         self._remove(row, frame_index, frame_key, other_leads_detail(s, self.map.classes, t.n_nondet[row], t.n_det[row]))
         return True
