@@ -5,6 +5,7 @@ import numpy as np
 
 from ltc_cli import plugins
 from ltc_cli.config import defaults
+from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
 from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame
 from ltc_cli.pipeline.mapper import Mapper
@@ -26,19 +27,21 @@ def test_picture_hits_by_hand():
     """A box 0.1 x 0.6 x 0.5 m at (4, 0, 1.15), yaw 0, grown by 0.1 m: x within 3.85-4.15, y within
     -0.4-0.4, z within 0.8-1.5. Turned by 90 degrees its 0.6 m side lies along x (3.6-4.4) and its
     0.1 m side along y (-0.15-0.15)."""
-    centers, sizes = np.array([[4.0, 0.0, 1.15]]), np.array([[0.1, 0.6, 0.5]])
+    def box(yaw):
+        return Boxes(np.array([[4.0, 0.0, 1.15]]), np.array([yaw]), np.array([[0.1, 0.6, 0.5]]), np.ones((1, 8), bool))
+
     points = np.array([[4.14, 0.39, 1.49],   # inside the grown box, near its corner
                        [4.16, 0.0, 1.15],    # 1 cm beyond it in x
                        [4.0, 0.0, 1.52],     # 2 cm above it
                        [4.3, 0.1, 1.15]])    # in the turned box only
     top = np.array([1, 1, 1, 1])
-    assert picture_hits(centers, np.array([0.0]), sizes, np.array([1]), points, top, 0.1).tolist() == [1]
+    assert picture_hits(box(0.0), np.array([1]), points, top, 0.1).tolist() == [1]
     # Turned: (4.14, 0.39) is 0.39 m off in y (> 0.15); (4.16, 0), (4.0, 0) and (4.3, 0.1) lie in
     # it by x and y, and (4.0, 0, 1.52) is above it.
-    assert picture_hits(centers, np.array([np.pi / 2]), sizes, np.array([1]), points, top, 0.1).tolist() == [2]
+    assert picture_hits(box(np.pi / 2), np.array([1]), points, top, 0.1).tolist() == [2]
     # A flat detection of another class does not count on it.
-    assert picture_hits(centers, np.array([0.0]), sizes, np.array([2]), points, top, 0.1).tolist() == [0]
-    assert picture_hits(centers, np.array([0.0]), sizes, np.array([1]), np.zeros((0, 3)), top[:0], 0.1).tolist() == [0]
+    assert picture_hits(box(0.0), np.array([2]), points, top, 0.1).tolist() == [0]
+    assert picture_hits(box(0.0), np.array([1]), np.zeros((0, 3)), top[:0], 0.1).tolist() == [0]
 
 
 def test_is_picture_by_hand():

@@ -201,8 +201,8 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         class they fall in; objects that are pictures by :func:`is_picture` go. Returns how many."""
         t, p_cfg = self.map.objects, self.cfg["modeling"]
         rows = self._candidates(T_map_camera, T_camera_map, intr, max_depth)
-        hits = picture_hits(t.center[rows], t.yaw[rows], t.size[rows], top_class(t.scores[rows]), stage1.flat_xyz,
-                            stage1.flat_top, PICTURE_MARGIN)
+        hits = picture_hits(t.boxes(rows), top_class(t.scores[rows]), stage1.flat_xyz, stage1.flat_top,
+                            PICTURE_MARGIN)
         t.cols["n_flat"][rows] += hits
         gone = rows[(hits > 0) & is_picture(t.n_det[rows], t.n_flat[rows], p_cfg["picture_object_share"],
                                             p_cfg["picture_min_views"])]

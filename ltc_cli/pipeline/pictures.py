@@ -13,6 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ltc_cli.geometry.boxes import Boxes, rot_z
 from ltc_cli.types import Intrinsics
 
 #: Metres a flat detection's point may lie outside the box of the object it counts on: the point is
@@ -115,21 +116,20 @@ def mask_point(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_ca
     return np.median(points, axis=0) if len(points) else None
 
 
-def picture_hits(centers: np.ndarray, yaws: np.ndarray, sizes: np.ndarray, top: np.ndarray,
-                 points_xyz: np.ndarray, point_top: np.ndarray, margin: float) -> np.ndarray:
-    """(M,) int: for each map object (boxes by centers (M, 3), yaws (M,), sizes (M, 3); top classes
-    (M,)), how many of the frame's flat detections of its class (points_xyz (P, 3): a point of each,
-    point_top (P,)) lie in its box grown by ``margin`` metres on every side.
+def picture_hits(boxes: Boxes, top: np.ndarray, points_xyz: np.ndarray, point_top: np.ndarray,
+                 margin: float) -> np.ndarray:
+    """(M,) int: for each map object (M boxes, top classes (M,)), how many of the frame's flat
+    detections of its class (points_xyz (P, 3): a point of each, point_top (P,)) lie in its box
+    grown by ``margin`` metres on every side.
 
     A poster the detector takes for a tv from some views is judged flat from others; the flat views
     were dropped one by one, and the others made an object. Counted on the object, they say what it is.
     """
-    if len(centers) == 0 or len(points_xyz) == 0:
-        return np.zeros(len(centers), dtype=np.int64)
-    d = points_xyz[None, :, :] - centers[:, None, :]  # (M, P, 3) in map axes
-    c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
-    local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1], d[..., 2]], axis=-1)
-    inside = np.all(np.abs(local) <= sizes[:, None, :] / 2 + margin, axis=-1)
+    if len(boxes) == 0 or len(points_xyz) == 0:
+        return np.zeros(len(boxes), dtype=np.int64)
+    d = points_xyz[None, :, :] - boxes.center[:, None, :]  # (M, P, 3) in map axes
+    local = np.einsum("mji,mpj->mpi", rot_z(boxes.yaw), d)  # R_box^T d: in each box's frame
+    inside = np.all(np.abs(local) <= boxes.size[:, None, :] / 2 + margin, axis=-1)
     inside &= top[:, None] == np.asarray(point_top)[None, :]
     return inside.sum(axis=1).astype(np.int64)
 
