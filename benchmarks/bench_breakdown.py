@@ -3,7 +3,9 @@
 Uses bench_accuracy's houses (benchmarks/.cache, realistic profile unless --profile benign) and
 ingests them with the vertex metric and the non-detection policy (or --set / --config), printing
 bench_accuracy's rows (any overlap; XY IoU > 0.25 with dup, ghosts, deleted, ids kept) and then,
-per lap, every false positive, missed seen object and lost id by its cause (--list: one by one).
+per lap, every false positive, missed seen object and lost id by its cause (--list: one by one), and
+what fails in each loose match (at some overlap, XY IoU <= 0.25): its place, its shape, either or
+both (tools.breakdown.loose_causes).
 
 With --true-poses the houses are ingested with the poses their images were rendered from instead
 of the simulated localiser's (bench_ceiling.py, write_true_poses): what a perfect localiser, or a
@@ -35,7 +37,8 @@ from ltc_cli.map.model import MERGED, REMOVED  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
 from ltc_cli.recordings.groundtruth import read_ground_truth  # noqa: E402
 from ltc_cli.tools.breakdown import (  # noqa: E402
-    FN_CAUSES, FP_CAUSES, ID_CAUSES, false_positive_causes, id_change_causes, missed_causes, tally,
+    FN_CAUSES, FP_CAUSES, ID_CAUSES, LOOSE_CAUSES, false_positive_causes, id_change_causes, loose_causes,
+    missed_causes, tally,
 )
 from ltc_cli.tools.evaluate import evaluate_map, ids_kept, map_objects  # noqa: E402
 from ltc_cli.tools.simulate.house import House  # noqa: E402
@@ -104,7 +107,7 @@ def run_house(h: Path, laps: int, args):
             kept = None if before is None else ids_kept(before, res)
             ids = {} if kept is None else id_change_causes(before, res, status_name(smap), kept["lost_gt_ids"])
             names = {**{f"m{o['id']}": o["class"] for o in objs}, **{f"g{o['id']}": o["class"] for o in gt["objects"]}}
-            out.append((res, kept, fp, fn, ids, names))
+            out.append((res, kept, fp, fn, ids, names, loose_causes(res, objs, gt["objects"])))
             earlier.append(gt)
             before = res
     return out
@@ -132,12 +135,12 @@ def main():
           f"config {args.config or 'defaults'}, overrides {args.sets or 'none'}")
     totals = [dict() for _ in range(args.laps)]
     strict = [dict() for _ in range(args.laps)]
-    causes = [{"fp": [], "fn": [], "id": []} for _ in range(args.laps)]
+    causes = [{"fp": [], "fn": [], "id": [], "loose": []} for _ in range(args.laps)]
     for h in houses:
-        for lap, (res, kept, fp, fn, ids, names) in enumerate(run_house(h, args.laps, args)):
+        for lap, (res, kept, fp, fn, ids, names, loose) in enumerate(run_house(h, args.laps, args)):
             acc.add(totals[lap], res)
             acc.add_strict(strict[lap], res, kept)
-            for key, d, prefix in (("fp", fp, "m"), ("fn", fn, "g"), ("id", ids, "g")):
+            for key, d, prefix in (("fp", fp, "m"), ("fn", fn, "g"), ("id", ids, "g"), ("loose", loose, "g")):
                 causes[lap][key] += [(h.name, i, names.get(f"{prefix}{i}", "?"), c) for i, c in d.items()]
     print(acc.STRICT_HEAD)
     for lap in range(args.laps):
@@ -145,11 +148,12 @@ def main():
         print(acc.strict_row(f"lap {lap + 1}", totals[lap], strict[lap]))
     for lap in range(args.laps):
         c = causes[lap]
-        for key, names in (("fp", FP_CAUSES + ("misplaced",)), ("fn", FN_CAUSES + ("loose",)), ("id", ID_CAUSES)):
+        for key, names in (("fp", FP_CAUSES + ("misplaced",)), ("fn", FN_CAUSES + ("loose",)), ("id", ID_CAUSES),
+                           ("loose", LOOSE_CAUSES)):
             t = tally({k: v[3] for k, v in enumerate(c[key])}, names)
             print(f"lap {lap + 1} {key}: " + ", ".join(f"{n} {t[n]}" for n in t))
         if args.list:
-            for key in ("fp", "fn", "id"):
+            for key in ("fp", "fn", "id", "loose"):
                 for hname, i, cls, cause in sorted(c[key], key=lambda x: (x[3], x[0], x[1])):
                     print(f"  lap {lap + 1} {key} {cause:<14} {hname} {'map' if key == 'fp' else 'gt'} {i} {cls}")
 

@@ -63,3 +63,29 @@ def test_lost_ids_by_cause():
     status = {1: "removed", 5: "active", 6: "merged", 7: "active"}.get
     assert id_change_causes(before, after, status, [1, 2, 3, 4]) == {
         1: "removed", 2: "unmatched", 3: "merged", 4: "rematched"}
+
+
+def _square(i, x, side):
+    return {"id": i, "class": "cup", "center": [x, 0.0, 0.5], "yaw": 0.0, "size": [side, side, 0.1]}
+
+
+def test_loose_matches_by_what_fails():
+    """A 0.1 m square cup at x = 0, 10, 20, 30 and a loose box on each (XY IoU by hand):
+    - 0.1 m square 0.08 m off: 0.02 x 0.1 / (0.02 - 0.002) = 0.111; moved onto the cup 1.0 -> place;
+      the cup's footprint at its centre is the same box -> fails;
+    - 0.4 m square on the cup's centre: 0.01 / 0.16 = 0.0625; moved: the same; the cup's footprint at
+      its centre: 1.0 -> shape;
+    - 0.195 m square 0.055 m off: overlap 0.0925 x 0.1, union 0.038025 + 0.01 - 0.00925 -> 0.239;
+      moved: 0.01 / 0.038025 = 0.263; the cup's footprint 0.055 m off: 0.045 / 0.155 = 0.290 -> either;
+    - 0.4 m square 0.2 m off: overlap 0.05 x 0.1 / (0.16 + 0.01 - 0.005) = 0.030; moved 0.0625; the
+      cup's footprint 0.2 m off: no overlap -> both.
+    A fifth box, 0.1 m square 0.01 m off (IoU 0.09 / 0.11 = 0.818), is no loose match."""
+    from ltc_cli.tools.breakdown import loose_causes
+
+    gt = [_square(1, 0.0, 0.1), _square(2, 10.0, 0.1), _square(3, 20.0, 0.1), _square(4, 30.0, 0.1),
+          _square(5, 40.0, 0.1)]
+    boxes = [_square(11, 0.08, 0.1), _square(12, 10.0, 0.4), _square(13, 20.055, 0.195), _square(14, 30.2, 0.4),
+             _square(15, 40.01, 0.1)]
+    res = evaluate(boxes, {"objects": gt})
+    assert {(m["map_id"], m["gt_id"]) for m in res["matches"]} == {(11, 1), (12, 2), (13, 3), (14, 4), (15, 5)}
+    assert loose_causes(res, boxes, gt) == {1: "place", 2: "shape", 3: "either", 4: "both"}
