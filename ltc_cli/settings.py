@@ -75,12 +75,16 @@ class AssociationSettings(TypedDict):
     part_label_share: Optional[float]
     container_max_width: Optional[dict[str, float]]
     merge_containment: Optional[float]
+    merge_other_class_evidence: Optional[float]
     merge_current_box: bool
     merge_id_by_label: bool
     merge: bool
 
 
 class IntegrationSettings(TypedDict):
+    free_space_step: Optional[float]
+    free_space_tolerance: float
+    free_space_max_share: float
     erosion: float
     max_weight: Optional[float]
     unassigned_score: str

@@ -216,8 +216,9 @@ def test_a_tentative_object_of_another_class_does_not_reshape_a_confirmed_one(re
     x 2.0..2.4, y -0.25..0.25, z 0.6..1.4: 0.16 m³) and a partial "dining table" made in the
     current session (table_det detections; x 1.6..2.8, y -0.5..0.5, z 0.2..1.4: 1.44 m³). The tv
     lies wholly inside the table and their volume ratio, 0.16 / 1.44 = 0.11, is within
-    other_class_volume_ratio (0.1), so they merge by cross-class containment (0.7), and the older id
-    (the tv) stays. With tentative_reshapes false its box stays exactly as it was while the table is
+    other_class_volume_ratio (0.1), and each class vector gives the other's class 0.15 (at least
+    merge_other_class_evidence, 0.1: one thing under two labels), so they merge by cross-class
+    containment (0.7), and the older id (the tv) stays. With tentative_reshapes false its box stays exactly as it was while the table is
     tentative (one detection, under min_detections 2), in session 1 as in session 0; with it true,
     or with the table confirmed (two detections), the merge reshapes it."""
     cfg = defaults()
@@ -226,8 +227,8 @@ def test_a_tentative_object_of_another_class_does_not_reshape_a_confirmed_one(re
     tv_box = (np.array([2.2, 0.0, 1.0]), np.array([0.4, 0.5, 0.8]))
     for cls, (center, size), n_det, first in ((TV, tv_box, 30, 0),
                                              (TABLE, (np.array([2.2, 0.0, 0.8]), np.array([1.2, 1.0, 1.2])), table_det, session)):
-        v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
-        v[cls], v[-1] = 0.9, 0.0
+        v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 2))
+        v[cls], v[TV + TABLE - cls], v[-1] = 0.75, 0.15, 0.0
         smap.objects.append(center=center, yaw=0.0, size=size, visible=np.zeros(8, bool), defined=False,
                             scores=v, n_det=n_det, status=ACTIVE, first_session=first, last_session=first)
     mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),

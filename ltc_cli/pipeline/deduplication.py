@@ -24,7 +24,9 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
                     other_volume_ratio: float | None = None, reach: float | None = None,
                     other_scale: float | None = None, min_overlap: float | None = None,
                     defined: np.ndarray | None = None, established: np.ndarray | None = None,
-                    labels_apart: bool = False, max_width: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                    labels_apart: bool = False, max_width: np.ndarray | None = None,
+                    scores: np.ndarray | None = None,
+                    min_evidence: float | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -49,6 +51,10 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     ``max_width`` (C+1,): per class, the widest footprint that joins a partial object of another
     class by containment, inside or around it (:func:`~ltc_cli.pipeline.association.too_wide`;
     None: any).
+
+    ``min_evidence`` with ``scores`` (M, C+1): two objects of different top classes join by
+    containment only when one's class vector gives the other's top class at least this score
+    (:func:`shared_evidence`; None: by containment alone).
     """
     m = len(boxes)
     if m < 2:
@@ -65,6 +71,8 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
         other_ok = np.where(similar_volume(vol[:, None], vol[None, :], other_volume_ratio), need_other or np.inf, np.inf)
         need = np.where(top[:, None] == top[None, :], need_same, other_ok)
         contained = inside >= need
+        if min_evidence is not None and scores is not None:
+            contained &= (top[:, None] == top[None, :]) | shared_evidence(scores, top, min_evidence)
         if max_width is not None:
             # A too wide box joins a box of another class by containment only when that one is
             # Defined (which then replaces its box), whichever of the two contains the other.
@@ -299,6 +307,16 @@ def enclosed_part(a, b) -> bool:
 PIECES_KEY = 4e6
 
 
+def shared_evidence(scores: np.ndarray, top: np.ndarray, min_score: float) -> np.ndarray:
+    """(M, M) bool: pairs of objects (class vectors scores (M, C+1), top classes (M,)) of which one
+    gives the other's top class at least ``min_score``. A chair the detector calls couch in some
+    views carries couch in its vector, and its couch-labelled pieces chair; a chair standing in a
+    table's partial box carries no table, nor the table chair."""
+    scores = np.asarray(scores)
+    given = scores[:, top] >= min_score  # [a, b]: a's vector gives b's top class
+    return given | given.T
+
+
 def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: float | None = None,
                 defined: np.ndarray | None = None, first_session: np.ndarray | None = None,
                 session: int | None = None, scores: np.ndarray | None = None,
@@ -314,7 +332,8 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     ``reach``: as for duplicate_pairs. ``session``: the current one; with ``established_apart`` and
     ``first_session``, objects made before it are ``established`` for duplicate_pairs.
     ``adjoin_share`` (C+1,): pieces of one long object last (:func:`adjoining_part_pairs`; None: none).
-    ``max_width`` (C+1,): as for duplicate_pairs (``container_max_width``)."""
+    ``max_width`` (C+1,): as for duplicate_pairs (``container_max_width``); ``scores`` (M, C+1):
+    the class vectors, for the labelled parts and for duplicate_pairs' ``merge_other_class_evidence``."""
     overlap = a_cfg["containment"] is not None
     established = first_session < session if a_cfg["established_apart"] and first_session is not None \
         and session is not None else None
@@ -322,7 +341,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                             overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
                             a_cfg["other_class_scale"], a_cfg["merge_min_overlap"], defined, established,
-                            a_cfg["labels_apart"], max_width)
+                            a_cfg["labels_apart"], max_width, scores, a_cfg["merge_other_class_evidence"])
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

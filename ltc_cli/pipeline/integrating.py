@@ -10,6 +10,7 @@ import numpy as np
 from ltc_cli.geometry.boxes import Box
 from ltc_cli.map.model import ACTIVE, top_class
 from ltc_cli.pipeline.association import foreign_geometry
+from ltc_cli.pipeline.carving import carve_box
 from ltc_cli.pipeline.integration import (
     fuse_scores, integrate_box, label_weight, moved_elsewhere, stale_weight, takes_in,
 )
@@ -51,6 +52,21 @@ class BoxIntegration:
         self._count_view(row)
         self.index.insert(row, new.center, new.size)
         self._log(frame_index, frame_key, "updated", row + 1)
+
+    def _carve(self, detected: dict, T_camera_map: np.ndarray, depth_m: np.ndarray, intr) -> None:
+        """Free-space carving (:func:`~ltc_cli.pipeline.carving.carve_box`) of the objects a frame
+        detected: ``detected`` maps each row to the box of its (first) detection in the frame."""
+        i_cfg, t = self.cfg["integration"], self.map.objects
+        for row, det_box in detected.items():
+            if t.status[row] != ACTIVE:
+                continue
+            old = t.box(row)
+            new = carve_box(old, det_box, T_camera_map, depth_m, intr, i_cfg["free_space_step"],
+                            i_cfg["free_space_max_share"], i_cfg["free_space_tolerance"],
+                            self.cfg["maintenance"]["ray_step"])
+            if new is not old:
+                t.set_box(row, new)
+                self.index.insert(row, new.center, new.size)
 
     def _outgrown(self, obs: Box, obj: Box, w_obs: float, w_obj: float, top: int, rows, plain: Box) -> Box:
         """``plain`` (the paper's box of ``obs`` integrated into ``obj``, both of class ``top``), or

@@ -120,7 +120,7 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         floor_z: the floor's height in the map frame, when known (grounds floor-standing furniture).
         stage1: the frame's stage 1 made elsewhere (a Dask worker, by :func:`model_frame` from the
         same inputs); then masks and scores are not used, and depth_m is read only where stage 4
-        reads it (see ltc_cli/ingest/remote.py).
+        and free-space carving read it (see ltc_cli/ingest/remote.py).
         """
         clock = clock or time.perf_counter
         self._moves.clear()
@@ -143,6 +143,7 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         # becomes a new object that later detections of the frame may take.
         in_view_rows = list(self._candidates(T_map_camera, T_camera_map, intr, depth_range[1]))
         matched_rows: set = set()
+        detected: dict = {}  # row -> the box of its first detection in this frame
         t_assoc = 0.0
         for k in range(len(modeled.source)):
             ta = clock()
@@ -161,6 +162,9 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
                 in_view_rows.append(j)
                 res.created += 1
             matched_rows.add(j)
+            detected.setdefault(j, det_box)
+        if self.cfg["integration"]["free_space_step"] is not None:
+            self._carve(detected, T_camera_map, depth_m, intr)
         t2 = clock()
 
         # Stage 4: objects that should have been seen and were not get a non-detection (eq. 4).

@@ -1,0 +1,54 @@
+"""association.merge_other_class_evidence (issue 9, twenty-seventh round): map objects of different
+top classes merge by containment only when one's class vector gives the other's class some score.
+Class confusions of one object fuse by evidence, not by size. Values worked out by hand."""
+
+import numpy as np
+import pytest
+
+from ltc_cli import plugins
+from ltc_cli.config import load_config
+from ltc_cli.geometry.boxes import Boxes
+from ltc_cli.pipeline.deduplication import merge_pairs, shared_evidence
+
+CHAIR, TABLE, COUCH, OTHER = 0, 1, 2, 3  # classes chair, dining table, couch; other last
+
+
+def test_shared_evidence_by_hand():
+    """A chair with couch 0.2, a couch with chair 0.12, a table with nothing of either: the chair
+    and the couch share evidence (0.2 >= 0.1 and 0.12 >= 0.1); the table with neither. At 0.15
+    the pair still stands by the chair's couch 0.2 alone."""
+    scores = np.array([[0.7, 0.0, 0.2, 0.1],
+                       [0.0, 0.8, 0.02, 0.18],
+                       [0.12, 0.03, 0.75, 0.1]])
+    top = np.array([CHAIR, TABLE, COUCH])
+    assert shared_evidence(scores, top, 0.1).tolist() == [[True, False, True],
+                                                          [False, True, False],
+                                                          [True, False, True]]
+    assert shared_evidence(scores, top, 0.15)[0, 2] and shared_evidence(scores, top, 0.15)[2, 0]
+    assert not shared_evidence(scores, top, 0.25)[0, 2]
+
+
+@pytest.mark.parametrize("chair_vector, overrides, merge", [
+    # The chair's vector gives the table nothing, the table's the chair nothing: two things.
+    ([0.67, 0.0, 0.2, 0.13], [], False),
+    # ... unless the rule is off (null: containment alone, as before).
+    ([0.67, 0.0, 0.2, 0.13], ["association.merge_other_class_evidence=null"], True),
+    # A "chair" whose vector gives the table 0.12 is the table under another label: it joins.
+    ([0.6, 0.12, 0.15, 0.13], [], True),
+])
+def test_a_chair_in_a_partial_table_box_joins_it_only_by_evidence(chair_vector, overrides, merge):
+    """A Defined 1.0 x 0.53 x 0.94 chair at (0, 0.5) inside a partial 1.83 x 1.97 x 0.86 table box
+    (second held-out medium house 301, after free-space carving cut its chair to one chair): its
+    footprint x -0.5..0.5, y 0.235..0.765 lies inside the table's -0.915..0.915 x -0.985..0.985, and
+    0.86 / 0.94 = 0.915 of it inside (>= containment_other_class 0.7), with 0.498 / 3.100 = 0.16
+    of the table's volume (>= other_class_volume_ratio 0.1); eq. 2 is far over 0.25 m and the
+    footprints' XY IoU 0.53 / 3.605 = 0.147 under merge_other_class_iou 0.3."""
+    cfg = load_config(None, overrides)
+    a_cfg = cfg["association"]
+    boxes = Boxes(np.array([[0.0, 0.5, 0.47], [0.0, 0.0, 0.43]]), np.zeros(2),
+                  np.array([[1.0, 0.53, 0.94], [1.83, 1.97, 0.86]]), np.ones((2, 8), bool))
+    scores = np.array([chair_vector, [0.0, 0.72, 0.1, 0.18]])
+    metric = plugins.get("metrics", "vertex").factory(a_cfg)
+    pairs = merge_pairs(boxes, np.array([CHAIR, TABLE]), metric.distance, a_cfg, None, np.array([True, False]),
+                        np.zeros(2, int), 0, scores)
+    assert {(a, b) for _, a, b in pairs} == ({(0, 1)} if merge else set())
