@@ -21,19 +21,22 @@ class BoxIntegration:
     ``cfg``, ``per_class``, ``rates``, ``index``, ``session``, ``_moves`` and the helpers these methods
     call)."""
 
-    def _integrate(self, row, det_box: Box, s_det, frame_index, frame_key) -> None:
-        """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3."""
+    def _integrate(self, row, det_box: Box, s_det, frame_index, frame_key) -> bool:
+        """Stage 3 on one matched detection: the box by the Defined flags, the class vector by eq. 3.
+        Returns whether the detection shaped the box (not another object's geometry, nor a move
+        that waits for the old place to be seen empty): then it bounds free-space carving."""
         t = self.map.objects
         self.rates.touch(row)
         i_cfg = self.cfg["integration"]
         obj = t.box(row)
         moves = i_cfg["stale_partial_moves"]
+        shaped = True
         if self._foreign(s_det, t.scores[row], det_box, obj):
-            new = obj  # the class evidence fuses; the geometry of a different object does not
+            new, shaped = obj, False  # the class evidence fuses; the geometry of a different object does not
         elif moves and moved_elsewhere(det_box, obj, t.last_session[row] < self.session):
             new = det_box  # the object was moved: its old box is where it was, the detection where it is
             if moves == "seen-empty":  # ... once stage 4 sees its old place empty in this frame
-                new, self._moves[row] = obj, det_box
+                new, self._moves[row], shaped = obj, det_box, False
         else:
             w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
             new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
@@ -52,10 +55,12 @@ class BoxIntegration:
         self._count_view(row)
         self.index.insert(row, new.center, new.size)
         self._log(frame_index, frame_key, "updated", row + 1)
+        return shaped
 
     def _carve(self, detected: dict, T_camera_map: np.ndarray, depth_m: np.ndarray, intr) -> None:
         """Free-space carving (:func:`~ltc_cli.pipeline.carving.carve_box`) of the objects a frame
-        detected: ``detected`` maps each row to the box of its (first) detection in the frame."""
+        detected: ``detected`` maps each row to the box of its first detection in the frame that
+        shaped it (see :meth:`_integrate`)."""
         i_cfg, t = self.cfg["integration"], self.map.objects
         for row, det_box in detected.items():
             if t.status[row] != ACTIVE:

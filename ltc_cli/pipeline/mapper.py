@@ -143,7 +143,7 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         # becomes a new object that later detections of the frame may take.
         in_view_rows = list(self._candidates(T_map_camera, T_camera_map, intr, depth_range[1]))
         matched_rows: set = set()
-        detected: dict = {}  # row -> the box of its first detection in this frame
+        detected: dict = {}  # row -> the box of its first detection in this frame that shaped it
         t_assoc = 0.0
         for k in range(len(modeled.source)):
             ta = clock()
@@ -155,14 +155,15 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
                 det_box.defined = False
             t_assoc += clock() - ta
             if j >= 0:
-                self._integrate(j, det_box, s_det, frame_index, frame_key)
+                shaped = self._integrate(j, det_box, s_det, frame_index, frame_key)
                 res.matched += 1
             else:
-                j = self._create(det_box, s_det, frame_index, frame_key)
+                j, shaped = self._create(det_box, s_det, frame_index, frame_key), True
                 in_view_rows.append(j)
                 res.created += 1
             matched_rows.add(j)
-            detected.setdefault(j, det_box)
+            if shaped:
+                detected.setdefault(j, det_box)
         if self.cfg["integration"]["free_space_step"] is not None:
             self._carve(detected, T_camera_map, depth_m, intr)
         t2 = clock()
