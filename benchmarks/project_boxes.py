@@ -1,6 +1,7 @@
 """Draw a map's boxes projected into frames of a recording, to look at a real map.
 
     python benchmarks/project_boxes.py MAP.h5 RECORDING -o out.png [--frames 0,50,100,150] [--cols 2] [--ids 3,7]
+        [-r KEY=VALUE]...   (reader options, as for ltc ingest: -r intrinsics=518,519,325.5,253.5)
 
 Each active object is drawn as its 12 box edges with ``id class``; vertices behind the camera are
 skipped. The map's up rotation is applied to the recording's poses, as ingest does.
@@ -21,6 +22,7 @@ from ltc_cli.geometry.boxes import box_corners  # noqa: E402
 from ltc_cli.geometry.camera import invert_pose, project, transform  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
+from ltc_cli.cli import reader_options  # noqa: E402
 from ltc_cli.recordings.open import open_recording  # noqa: E402
 
 EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7)]
@@ -64,9 +66,11 @@ def main():
     ap.add_argument("--cols", type=int, default=2)
     ap.add_argument("--scale", type=float, default=0.6)
     ap.add_argument("--ids", default="", help="only these object ids (comma-separated; default all)")
+    ap.add_argument("-r", "--reader-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="a reader option, as for ltc ingest (e.g. -r intrinsics=518,519,325.5,253.5)")
     args = ap.parse_args()
     smap = load_map(args.map)
-    rec = open_recording(args.recording)
+    rec = open_recording(args.recording, options=reader_options(args.reader_option))
     T_up = np.eye(4)
     T_up[:3, :3] = smap.up_rotation
     tiles = []
