@@ -149,3 +149,41 @@ def test_only_a_detection_that_shaped_the_box_carves_it():
     mapper.process_frame(1, "1", masks, [np.array([0.0, 1.0, 0.0])], depth, T_CAM, INTR, (0.3, 6.0))
     y = box_corners(smap.objects.center[row], smap.objects.yaw[row], smap.objects.size[row])[:, 1]
     np.testing.assert_allclose([y.min(), y.max()], [-0.2, 0.6], atol=1e-9)
+
+
+@pytest.mark.parametrize("pieces, y_max", [
+    # Two pieces of the table in one frame (a split mask): y -0.2-0.0 and y 0.3-0.5. The depth sees
+    # through everything (only the wall), so the +y side goes in to the second piece's face, y 0.5
+    # (two steps), not further.
+    (2, 0.5),
+    # The first piece alone bounds nothing on that side: 0.3 of the 0.8 m side, four steps, y 0.4.
+    (1, 0.4),
+])
+def test_every_piece_a_frame_saw_bounds_the_carving(pieces, y_max):
+    """Stage 1 given (as a Dask worker sends it): partial table detections inside the map object's
+    partial box (x 2.0-2.4, y -0.2-0.6) join it by containment, shape it, and together bound the
+    cut."""
+    from ltc_cli import plugins
+    from ltc_cli.config import defaults
+    from ltc_cli.geometry.boxes import Boxes
+    from ltc_cli.map.model import ACTIVE, SemanticMap
+    from ltc_cli.pipeline.frame_modeling import FrameModel
+    from ltc_cli.pipeline.mapper import Mapper
+    from ltc_cli.pipeline.modeling import ModeledDetections
+
+    cfg = defaults()
+    smap = SemanticMap.new(["cup", "dining table"])
+    row = smap.objects.append(center=GROWN.center, yaw=0.0, size=GROWN.size, visible=np.zeros(8, bool),
+                              defined=False, scores=np.array([0.0, 1.0, 0.0]), n_det=5, status=ACTIVE)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]))
+    mapper.index.insert(row, GROWN.center, GROWN.size)
+    centers = np.array([[2.2, -0.1, 0.85], [2.2, 0.4, 0.85]])[:pieces]
+    boxes = Boxes(centers, np.zeros(pieces), np.tile([0.4, 0.2, 0.7], (pieces, 1)), np.zeros((pieces, 8), bool))
+    stage1 = FrameModel(pieces, [np.array([0.0, 1.0, 0.0])] * pieces,
+                        ModeledDetections(boxes, np.zeros(pieces, bool), np.arange(pieces), np.full(pieces, 100)))
+    wall = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    res = mapper.process_frame(0, "0", [], [], wall, T_CAM, INTR, (0.3, 6.0), stage1=stage1)
+    assert res.created == 0 and smap.objects.n_det[row] == 5 + pieces
+    y = box_corners(smap.objects.center[row], smap.objects.yaw[row], smap.objects.size[row])[:, 1]
+    np.testing.assert_allclose([y.min(), y.max()], [-0.2, y_max], atol=1e-9)

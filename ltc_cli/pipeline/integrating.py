@@ -59,7 +59,7 @@ class BoxIntegration:
 
     def _carve(self, detected: dict, T_camera_map: np.ndarray, depth_m: np.ndarray, intr) -> None:
         """Free-space carving (:func:`~ltc_cli.pipeline.carving.carve_box`) of the objects a frame
-        detected: ``detected`` maps each row to the box of its first detection in the frame that
+        detected: ``detected`` maps each row to the box enclosing its detections in the frame that
         shaped it (see :meth:`_integrate`)."""
         i_cfg, t = self.cfg["integration"], self.map.objects
         for row, det_box in detected.items():

@@ -23,7 +23,7 @@ from ltc_cli.pipeline.association import (
     within_reach,
 )
 from ltc_cli.pipeline.class_settings import ClassSettings
-from ltc_cli.pipeline.integration import fuse_scores
+from ltc_cli.pipeline.integration import enclosing_box, fuse_scores
 from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.pruning import SessionPruning
@@ -143,7 +143,7 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         # becomes a new object that later detections of the frame may take.
         in_view_rows = list(self._candidates(T_map_camera, T_camera_map, intr, depth_range[1]))
         matched_rows: set = set()
-        detected: dict = {}  # row -> the box of its first detection in this frame that shaped it
+        detected: dict = {}  # row -> the box enclosing its detections in this frame that shaped it
         t_assoc = 0.0
         for k in range(len(modeled.source)):
             ta = clock()
@@ -162,8 +162,8 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
                 in_view_rows.append(j)
                 res.created += 1
             matched_rows.add(j)
-            if shaped:
-                detected.setdefault(j, det_box)
+            if shaped:  # every piece of it this frame saw (a split mask) bounds the carving
+                detected[j] = enclosing_box(det_box, detected[j], 0.0, 0.0) if j in detected else det_box
         if self.cfg["integration"]["free_space_step"] is not None:
             self._carve(detected, T_camera_map, depth_m, intr)
         t2 = clock()
