@@ -6,10 +6,16 @@ out by hand."""
 import numpy as np
 import pytest
 
-from ltc_cli.geometry.boxes import Box, box_corners
+from ltc_cli import plugins
+from ltc_cli.config import defaults
+from ltc_cli.geometry.boxes import Box, Boxes, box_corners
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.ingest.remote import pack_depth, unpack_depth
+from ltc_cli.map.model import ACTIVE, SemanticMap
 from ltc_cli.pipeline.carving import carve_box, grid_pixel, seen_through, slice_points
+from ltc_cli.pipeline.frame_modeling import FrameModel
+from ltc_cli.pipeline.mapper import Mapper
+from ltc_cli.pipeline.modeling import ModeledDetections
 from tests.scene import INTR, T_world_camera, render
 
 # The camera stands at (0, 1, 1), beside the things it looks at, so the rays to the space at
@@ -20,6 +26,24 @@ OBJECT = (2.0, 2.4, -0.2, 0.2, 0.5, 1.2)  # x0, x1, y0, y1, z0, z1
 DETECTION = Box(np.array([2.2, 0.0, 0.85]), 0.0, np.array([0.4, 0.4, 0.7]), np.ones(8, bool), True)
 # The map's box of it reaches 0.4 m too far in +y: y -0.2 - 0.6.
 GROWN = Box(np.array([2.2, 0.2, 0.85]), 0.0, np.array([0.4, 0.8, 0.7]), np.ones(8, bool), False)
+
+
+def table_mapper(cfg, visible):
+    """(mapper, map, row): a map holding GROWN as a partial "dining table" of 5 detections (vertex
+    metric, static policy, so that only integration and carving change it)."""
+    smap = SemanticMap.new(["cup", "dining table"])
+    row = smap.objects.append(center=GROWN.center, yaw=0.0, size=GROWN.size, visible=np.full(8, visible),
+                              defined=False, scores=np.array([0.0, 1.0, 0.0]), n_det=5, status=ACTIVE)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]))
+    mapper.index.insert(row, GROWN.center, GROWN.size)
+    return mapper, smap, row
+
+
+def footprint_y(t, row):
+    """The world y extent [min, max] of a map object's box."""
+    y = box_corners(t.center[row], t.yaw[row], t.size[row])[:, 1]
+    return [y.min(), y.max()]
 
 
 def carve(depth, max_share=0.5, box=GROWN, ray_step=1):
@@ -116,18 +140,8 @@ def test_only_a_detection_that_shaped_the_box_carves_it():
     through), to y -0.2-0.4. A "cup" detection integrated into it (another class, 0.07 of its
     volume: foreign geometry, only its class evidence fuses) did not shape it, and would carve
     nothing (integration returns False)."""
-    from ltc_cli import plugins
-    from ltc_cli.config import defaults
-    from ltc_cli.map.model import ACTIVE, SemanticMap
-    from ltc_cli.pipeline.mapper import Mapper
-
     cfg = defaults()
-    smap = SemanticMap.new(["cup", "dining table"])
-    row = smap.objects.append(center=GROWN.center, yaw=0.0, size=GROWN.size, visible=np.ones(8, bool),
-                              defined=False, scores=np.array([0.0, 1.0, 0.0]), n_det=5, status=ACTIVE)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]))
-    mapper.index.insert(row, GROWN.center, GROWN.size)
+    mapper, smap, row = table_mapper(cfg, True)
     cup = Box(np.array([2.2, 0.2, 0.85]), 0.0, np.array([0.2, 0.2, 0.3]), np.ones(8, bool), True)
     assert mapper._integrate(row, cup, np.array([1.0, 0.0, 0.0]), 0, "0") is False
     np.testing.assert_array_equal(smap.objects.size[row], GROWN.size)
@@ -137,18 +151,11 @@ def test_only_a_detection_that_shaped_the_box_carves_it():
     assert t.status[row] == ACTIVE and t.n_det[row] == 7
     # The world's y extent (the enclosing with the modeled view, which turns the box's axes a quarter
     # turn and pads its x side to 0.405 m, leaves y -0.2-0.6 as it was: the setting off shows it).
-    y = box_corners(t.center[row], t.yaw[row], t.size[row])[:, 1]
-    np.testing.assert_allclose([y.min(), y.max()], [-0.2, 0.4], atol=1e-9)
+    np.testing.assert_allclose(footprint_y(t, row), [-0.2, 0.4], atol=1e-9)
     cfg["integration"]["free_space_step"] = None
-    smap = SemanticMap.new(["cup", "dining table"])
-    row = smap.objects.append(center=GROWN.center, yaw=0.0, size=GROWN.size, visible=np.ones(8, bool),
-                              defined=False, scores=np.array([0.0, 1.0, 0.0]), n_det=5, status=ACTIVE)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]))
-    mapper.index.insert(row, GROWN.center, GROWN.size)
+    mapper, smap, row = table_mapper(cfg, True)
     mapper.process_frame(1, "1", masks, [np.array([0.0, 1.0, 0.0])], depth, T_CAM, INTR, (0.3, 6.0))
-    y = box_corners(smap.objects.center[row], smap.objects.yaw[row], smap.objects.size[row])[:, 1]
-    np.testing.assert_allclose([y.min(), y.max()], [-0.2, 0.6], atol=1e-9)
+    np.testing.assert_allclose(footprint_y(smap.objects, row), [-0.2, 0.6], atol=1e-9)
 
 
 @pytest.mark.parametrize("pieces, y_max", [
@@ -163,21 +170,7 @@ def test_every_piece_a_frame_saw_bounds_the_carving(pieces, y_max):
     """Stage 1 given (as a Dask worker sends it): partial table detections inside the map object's
     partial box (x 2.0-2.4, y -0.2-0.6) join it by containment, shape it, and together bound the
     cut."""
-    from ltc_cli import plugins
-    from ltc_cli.config import defaults
-    from ltc_cli.geometry.boxes import Boxes
-    from ltc_cli.map.model import ACTIVE, SemanticMap
-    from ltc_cli.pipeline.frame_modeling import FrameModel
-    from ltc_cli.pipeline.mapper import Mapper
-    from ltc_cli.pipeline.modeling import ModeledDetections
-
-    cfg = defaults()
-    smap = SemanticMap.new(["cup", "dining table"])
-    row = smap.objects.append(center=GROWN.center, yaw=0.0, size=GROWN.size, visible=np.zeros(8, bool),
-                              defined=False, scores=np.array([0.0, 1.0, 0.0]), n_det=5, status=ACTIVE)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]))
-    mapper.index.insert(row, GROWN.center, GROWN.size)
+    mapper, smap, row = table_mapper(defaults(), False)
     centers = np.array([[2.2, -0.1, 0.85], [2.2, 0.4, 0.85]])[:pieces]
     boxes = Boxes(centers, np.zeros(pieces), np.tile([0.4, 0.2, 0.7], (pieces, 1)), np.zeros((pieces, 8), bool))
     stage1 = FrameModel(pieces, [np.array([0.0, 1.0, 0.0])] * pieces,
@@ -185,5 +178,4 @@ def test_every_piece_a_frame_saw_bounds_the_carving(pieces, y_max):
     wall = np.full((INTR.height, INTR.width), 4.0, np.float32)
     res = mapper.process_frame(0, "0", [], [], wall, T_CAM, INTR, (0.3, 6.0), stage1=stage1)
     assert res.created == 0 and smap.objects.n_det[row] == 5 + pieces
-    y = box_corners(smap.objects.center[row], smap.objects.yaw[row], smap.objects.size[row])[:, 1]
-    np.testing.assert_allclose([y.min(), y.max()], [-0.2, y_max], atol=1e-9)
+    np.testing.assert_allclose(footprint_y(smap.objects, row), [-0.2, y_max], atol=1e-9)
