@@ -7,8 +7,10 @@ counted in their READMEs, ids kept on ``--revisit``, a reversed-order pass, fram
 
 Each recording is mapped three times: forward (timed: detection + mapping, one thread), forward
 again as a ``--revisit`` of the same map, and in reverse frame order into a new map. Then the
-ways a robot drives a route again: the session-1 map revisited in reverse order, and both sessions
-at half the frame rate (every other frame), and one session at a third of it (a detector at 10 Hz).
+ways a robot drives a route again: the session-1 map revisited in reverse order, both sessions at
+half the frame rate (every other frame), the even frames' map revisited with the odd frames (the
+same route seen in other images, so the detector's word differs), and one session at a third of
+the frame rate (a detector at 10 Hz).
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -63,6 +65,7 @@ class BenchPlugin:
         register("reversed", Reordered(reverse=True))
         register("every-other", Reordered(step=2))
         register("every-third", Reordered(step=3))
+        register("odd-frames", Reordered(step=2, start=1))
 
 
 def dining_room(tmp: Path) -> Path:
@@ -95,6 +98,25 @@ def lost_ids(map_path, ids: set) -> list[str]:
     return out
 
 
+def new_objects(map_path, ids: set, full_map_path) -> list[str]:
+    """Class, place and detections of each object a revisit added, and how far the nearest object
+    of its class stands in the map of every frame (``full_map_path``): a thing the first session
+    missed that the whole recording maps, or the detector's mistake."""
+    smap, full = load_map(map_path), load_map(full_map_path)
+    t, f = smap.objects, full.objects
+    rows = np.flatnonzero(f.status == ACTIVE)
+    out = []
+    for oid in sorted(ids):
+        r = oid - 1
+        cls = smap.classes[int(top_class(t.scores[r]))]
+        same = rows[[full.classes[int(c)] == cls for c in top_class(f.scores[rows])]]
+        near = (f"the full recording's map has one {np.linalg.norm(f.center[same] - t.center[r], axis=1).min():.2f} m "
+                f"away" if same.size else "none in the full recording's map")
+        out.append(f"{cls} {oid} at ({t.center[r][0]:.2f}, {t.center[r][1]:.2f}, {t.center[r][2]:.2f}), "
+                   f"{int(t.n_det[r])} detections; {near}")
+    return out
+
+
 def verdict(name: str, counts: Counter) -> str:
     truth = TRUTH.get(name, {})
     bad = [f"{c} {counts.get(c, 0)} not in [{lo}, {hi}]" for c, (lo, hi) in truth.items()
@@ -110,7 +132,7 @@ def main():
     ap.add_argument("--set", dest="sets", action="append", default=[])
     ap.add_argument("--keep", metavar="DIR", help="write the maps here (NAME.h5 after the revisit, "
                     "NAME-session1.h5, NAME-reversed.h5, NAME-revisit-reversed.h5, NAME-every-other.h5, "
-                    "NAME-every-third.h5) "
+                    "NAME-every-third.h5, NAME-odd-frames.h5) "
                     "to draw or query them")
     args = ap.parse_args()
     if not Path(args.model).is_file():
@@ -141,6 +163,10 @@ def main():
             back, ids_back = census(m_back)
             ingest([path], m_half, load_config(None, sets), reader="every-other")
             half1, ids_half1 = census(m_half)
+            m_odd = tmp / f"{name}-odd.h5"
+            shutil.copyfile(m_half, m_odd)
+            ingest([path], m_odd, load_config(None, sets), reader="odd-frames", revisit=True)
+            odd, ids_odd = census(m_odd)
             ingest([path], m_half, load_config(None, sets), reader="every-other", revisit=True)
             half2, ids_half2 = census(m_half)
             m_third = tmp / f"{name}-third.h5"
@@ -152,6 +178,7 @@ def main():
                 shutil.copyfile(m_back, Path(args.keep) / f"{name}-revisit-reversed.h5")
                 shutil.copyfile(m_half, Path(args.keep) / f"{name}-every-other.h5")
                 shutil.copyfile(m_third, Path(args.keep) / f"{name}-every-third.h5")
+                shutil.copyfile(m_odd, Path(args.keep) / f"{name}-odd-frames.h5")
             classes = sorted(set(first) | set(second) | set(rev) | set(TRUTH.get(name, {})))
             print(f"\n{name}: {s.frames_done} frames, {s.frames_done / wall:.1f} frames/s "
                   f"({1000 * cpu / max(s.frames_done, 1):.0f} ms CPU per frame, detection included, one thread)")
@@ -177,6 +204,13 @@ def main():
                   f"objects, ids kept {len(ids_half1 & ids_half2) / max(len(ids_half1), 1):.0%}")
             for line in lost_ids(m_half, ids_half1 - ids_half2):
                 print(f"    lost: {line}")
+            n_odd = sum(odd.values())
+            print(f"  even frames revisited with the odd ones: objects {n_h1} -> {n_odd}; ids kept "
+                  f"{len(ids_half1 & ids_odd) / max(len(ids_half1), 1):.0%}; {verdict(name, odd)}")
+            for line in lost_ids(m_odd, ids_half1 - ids_odd):
+                print(f"    lost: {line}")
+            for line in new_objects(m_odd, ids_odd - ids_half1, tmp / f"{name}-s1.h5"):
+                print(f"    new: {line}")
             print(f"  every third frame: {sum(third.values())} objects ({verdict(name, third)})")
 
 

@@ -30,10 +30,11 @@ class Replay:
 
 class Reordered:
     """Any recording with its frames in reverse order (the same route driven backwards), or every
-    ``step``-th frame of it (a lower frame rate)."""
+    ``step``-th frame of it from frame ``start`` (a lower frame rate; with another start, the same
+    route driven again and seen in other images)."""
 
-    def __init__(self, reverse: bool = False, step: int = 1):
-        self.reverse, self.step = reverse, step
+    def __init__(self, reverse: bool = False, step: int = 1, start: int = 0):
+        self.reverse, self.step, self.start = reverse, step, start
 
     def sniff(self, path) -> bool:
         return False
@@ -43,4 +44,4 @@ class Reordered:
 
         rec = open_recording(path)
         frames = list(reversed(rec.frames)) if self.reverse else list(rec.frames)
-        return replace(rec, frames=frames[::self.step])
+        return replace(rec, frames=frames[self.start::self.step])

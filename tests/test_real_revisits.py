@@ -1,6 +1,6 @@
 """A robot drives its route again in another way: tum-fr1-rpy (../shared) mapped with the shared
-fp32 YOLOv8n-seg, then revisited in reverse frame order, at half the frame rate, and in a mix of
-the two over four sessions. Every id of the first session stays and every class stays within the
+fp32 YOLOv8n-seg, then revisited in reverse frame order, at half the frame rate, with the other
+half of the frames, and in a mix of these over four sessions. Every id of the first session stays and every class stays within the
 counts of the recording's README (issue 9; docs/decisions.md, fifteenth round: before
 ``association.established_apart`` the reversed revisit kept 83 % of the ids, the half-rate
 sessions 70 % and the four-session mix 92 %). Skipped when ../shared is absent.
@@ -42,9 +42,9 @@ class RevisitPlugin:
 
     @hookimpl
     def register_readers(self, register):
-        for name, reverse, step in (("forward", False, 1), ("reversed", True, 1), ("half", False, 2),
-                                    ("reversed-half", True, 2), ("third", False, 3)):
-            register(name, Reordered(reverse, step))
+        for name, reverse, step, start in (("forward", False, 1, 0), ("reversed", True, 1, 0), ("half", False, 2, 0),
+                                           ("odd", False, 2, 1), ("reversed-half", True, 2, 0), ("third", False, 3, 0)):
+            register(name, Reordered(reverse, step, start))
 
 
 @pytest.fixture(scope="module")
@@ -92,6 +92,28 @@ def test_two_sessions_at_half_the_frame_rate_keep_every_id(session, tmp_path):
     second, ids2 = session("half", m, revisit=True)
     assert within_truth(first) == [] and within_truth(second) == []
     assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
+
+
+def test_the_route_seen_in_other_images_keeps_every_id_and_adds_what_the_whole_recording_maps(session, tmp_path):
+    """The even frames, then the odd ones as a revisit: the same route, but every image is another
+    one, so the detector's word differs (a replay of the same frames cannot show that). Every id of
+    the first session stays, and each object the revisit adds is one that the map of all the
+    frames has too (within 0.3 m, same class): a thing the even frames named once, not a new
+    mistake (measured: 10 -> 13 objects, a mouse, a chair and a "book" the even frames missed)."""
+    m, full = tmp_path / "map.h5", tmp_path / "full.h5"
+    first, ids1 = session("half", m)
+    second, ids2 = session("odd", m, revisit=True)
+    session("forward", full)
+    assert within_truth(first) == [] and within_truth(second) == []
+    assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
+    added = sorted(ids2 - ids1)
+    smap, whole = load_map(m), load_map(full)
+    rows = np.flatnonzero(whole.objects.status == ACTIVE)
+    for oid in added:
+        cls = int(top_class(smap.objects.scores[oid - 1]))
+        same = rows[top_class(whole.objects.scores[rows]) == cls]
+        gap = np.linalg.norm(whole.objects.center[same] - smap.objects.center[oid - 1], axis=1).min(initial=np.inf)
+        assert gap < 0.3, f"object {oid} ({smap.classes[cls]}) is {gap:.2f} m from its class in the full map"
 
 
 def test_a_third_of_the_frame_rate_maps_what_is_in_view(session, tmp_path):
