@@ -9,8 +9,10 @@ Each recording is mapped three times: forward (timed: detection + mapping, one t
 again as a ``--revisit`` of the same map, and in reverse frame order into a new map. Then the
 ways a robot drives a route again: the session-1 map revisited in reverse order, both sessions at
 half the frame rate (every other frame), the even frames' map revisited with the odd frames (the
-same route seen in other images, so the detector's word differs), and one session at a third of
-the frame rate (a detector at 10 Hz).
+same route seen in other images, so the detector's word differs), the first half's map revisited
+with the second half and the other way round (a drive along part of the route, then along the
+rest: what both saw keeps its id, what only one saw stays), and one session at a third of the
+frame rate (a detector at 10 Hz).
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -66,6 +68,8 @@ class BenchPlugin:
         register("every-other", Reordered(step=2))
         register("every-third", Reordered(step=3))
         register("odd-frames", Reordered(step=2, start=1))
+        register("first-half", Reordered(span=(0.0, 0.5)))
+        register("second-half", Reordered(span=(0.5, 1.0)))
 
 
 def dining_room(tmp: Path) -> Path:
@@ -132,7 +136,8 @@ def main():
     ap.add_argument("--set", dest="sets", action="append", default=[])
     ap.add_argument("--keep", metavar="DIR", help="write the maps here (NAME.h5 after the revisit, "
                     "NAME-session1.h5, NAME-reversed.h5, NAME-revisit-reversed.h5, NAME-every-other.h5, "
-                    "NAME-every-third.h5, NAME-odd-frames.h5) "
+                    "NAME-every-third.h5, NAME-odd-frames.h5, NAME-first-half-then-second-half.h5, "
+                    "NAME-second-half-then-first-half.h5) "
                     "to draw or query them")
     args = ap.parse_args()
     if not Path(args.model).is_file():
@@ -211,6 +216,21 @@ def main():
                 print(f"    lost: {line}")
             for line in new_objects(m_odd, ids_odd - ids_half1, tmp / f"{name}-s1.h5"):
                 print(f"    new: {line}")
+            for a, b in (("first-half", "second-half"), ("second-half", "first-half")):
+                m_part = tmp / f"{name}-{a}.h5"
+                ingest([path], m_part, load_config(None, sets), reader=a)
+                part1, ids_part1 = census(m_part)
+                ingest([path], m_part, load_config(None, sets), reader=b, revisit=True)
+                part2, ids_part2 = census(m_part)
+                if args.keep:
+                    shutil.copyfile(m_part, Path(args.keep) / f"{name}-{a}-then-{b}.h5")
+                print(f"  {a.replace('-', ' ')}, then the {b.replace('-', ' ')}: objects {sum(part1.values())} -> "
+                      f"{sum(part2.values())}; ids kept {len(ids_part1 & ids_part2) / max(len(ids_part1), 1):.0%}; "
+                      f"{verdict(name, part2)}")
+                for line in lost_ids(m_part, ids_part1 - ids_part2):
+                    print(f"    lost: {line}")
+                for line in new_objects(m_part, ids_part2 - ids_part1, tmp / f"{name}-s1.h5"):
+                    print(f"    new: {line}")
             print(f"  every third frame: {sum(third.values())} objects ({verdict(name, third)})")
 
 

@@ -31,10 +31,11 @@ class Replay:
 class Reordered:
     """Any recording with its frames in reverse order (the same route driven backwards), or every
     ``step``-th frame of it from frame ``start`` (a lower frame rate; with another start, the same
-    route driven again and seen in other images)."""
+    route driven again and seen in other images), or the part ``span`` of it (fractions of its
+    frames: a drive along part of the route)."""
 
-    def __init__(self, reverse: bool = False, step: int = 1, start: int = 0):
-        self.reverse, self.step, self.start = reverse, step, start
+    def __init__(self, reverse: bool = False, step: int = 1, start: int = 0, span: tuple = (0.0, 1.0)):
+        self.reverse, self.step, self.start, self.span = reverse, step, start, span
 
     def sniff(self, path) -> bool:
         return False
@@ -43,5 +44,7 @@ class Reordered:
         from ltc_cli.recordings.open import open_recording
 
         rec = open_recording(path)
-        frames = list(reversed(rec.frames)) if self.reverse else list(rec.frames)
+        n = len(rec.frames)
+        frames = list(rec.frames)[round(self.span[0] * n):round(self.span[1] * n)]
+        frames = list(reversed(frames)) if self.reverse else frames
         return replace(rec, frames=frames[self.start::self.step])

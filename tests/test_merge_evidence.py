@@ -52,3 +52,39 @@ def test_a_chair_in_a_partial_table_box_joins_it_only_by_evidence(chair_vector, 
     pairs = merge_pairs(boxes, np.array([CHAIR, TABLE]), metric.distance, a_cfg, None, np.array([True, False]),
                         np.zeros(2, int), 0, scores)
     assert {(a, b) for _, a, b in pairs} == ({(0, 1)} if merge else set())
+
+
+TV, MOUSE = 0, 1  # classes tv, mouse; other last
+
+
+@pytest.mark.parametrize("foot_vector, first_session, overrides, merge", [
+    # Both made in session 0, seen again in session 1, neither vector gives the other's class.
+    ([0.05, 0.8, 0.15], [0, 0], [], False),
+    # ... the foot's vector gives tv 0.15 (>= 0.1): one thing under two labels, it merges.
+    ([0.15, 0.7, 0.15], [0, 0], [], True),
+    # ... both made in this session: eq. 2 alone, as before (one object's two labels in one pass).
+    ([0.05, 0.8, 0.15], [1, 1], [], True),
+    # ... the rule off.
+    ([0.05, 0.8, 0.15], [0, 0], ["association.merge_other_class_evidence=null"], True),
+])
+def test_two_established_objects_of_other_classes_merge_by_eq2_only_with_shared_evidence(
+        foot_vector, first_session, overrides, merge):
+    """A Defined 0.2 x 0.3 x 0.3 "tv" at (0, 0, 1.0) and the Defined 0.16 x 0.24 x 0.14 "mouse" of
+    its foot at (0.06, 0.1, 0.8) (tum-fr1-rpy's second monitor and its foot, both of session 0,
+    merged in session 1 and the monitor became "mouse"). Eq. 2 over the 8 vertices, worked out
+    by hand: centre offset (0.06, 0.10, -0.20), half sizes differ by (-0.02, -0.03, -0.08), the
+    eight vertex distances sum to 1.9015, mean 0.2377 m, under threshold_other_class 0.25 (its cap
+    1.25 x 0.2345 above it). The foot's footprint x -0.02..0.14, y -0.02..0.22 shares 0.0204 m^2
+    with the tv's x -0.1..0.1, y -0.15..0.15: 0.53 of the smaller (>= merge_min_overlap 0.2),
+    XY IoU 0.0204 / 0.078 = 0.26 (under merge_other_class_iou 0.3, so no two-labels pair)."""
+    cfg = load_config(None, overrides)
+    a_cfg = cfg["association"]
+    boxes = Boxes(np.array([[0.0, 0.0, 1.0], [0.06, 0.10, 0.8]]), np.zeros(2),
+                  np.array([[0.2, 0.3, 0.3], [0.16, 0.24, 0.14]]), np.ones((2, 8), bool))
+    scores = np.array([[0.82, 0.0, 0.18], foot_vector])
+    metric = plugins.get("metrics", "vertex").factory(a_cfg)
+    pairs = merge_pairs(boxes, np.array([TV, MOUSE]), metric.distance, a_cfg, None, np.array([True, True]),
+                        np.array(first_session), 1, scores)
+    assert [(a, b) for _, a, b in pairs] == ([(0, 1)] if merge else [])
+    if merge:
+        assert pairs[0][0] == pytest.approx(0.2377, abs=5e-4)

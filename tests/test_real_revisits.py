@@ -1,6 +1,6 @@
 """A robot drives its route again in another way: tum-fr1-rpy (../shared) mapped with the shared
 fp32 YOLOv8n-seg, then revisited in reverse frame order, at half the frame rate, with the other
-half of the frames, and in a mix of these over four sessions. Every id of the first session stays and every class stays within the
+half of the frames, along the other half of the route, and in a mix of these over four sessions. Every id of the first session stays and every class stays within the
 counts of the recording's README (issue 9; docs/decisions.md, fifteenth round: before
 ``association.established_apart`` the reversed revisit kept 83 % of the ids, the half-rate
 sessions 70 % and the four-session mix 92 %). Skipped when ../shared is absent.
@@ -45,6 +45,8 @@ class RevisitPlugin:
         for name, reverse, step, start in (("forward", False, 1, 0), ("reversed", True, 1, 0), ("half", False, 2, 0),
                                            ("odd", False, 2, 1), ("reversed-half", True, 2, 0), ("third", False, 3, 0)):
             register(name, Reordered(reverse, step, start))
+        register("first-half", Reordered(span=(0.0, 0.5)))
+        register("second-half", Reordered(span=(0.5, 1.0)))
 
 
 @pytest.fixture(scope="module")
@@ -114,6 +116,22 @@ def test_the_route_seen_in_other_images_keeps_every_id_and_adds_what_the_whole_r
         same = rows[top_class(whole.objects.scores[rows]) == cls]
         gap = np.linalg.norm(whole.objects.center[same] - smap.objects.center[oid - 1], axis=1).min(initial=np.inf)
         assert gap < 0.3, f"object {oid} ({smap.classes[cls]}) is {gap:.2f} m from its class in the full map"
+
+
+@pytest.mark.parametrize("first, then", [("first-half", "second-half"), ("second-half", "first-half")])
+def test_a_drive_along_the_rest_of_the_route_keeps_every_id(session, tmp_path, first, then):
+    """Half the route, then the other half as a revisit: what both halves see keeps its id, what
+    only the first saw stays (it is not in view), and the counts stay within one of the README's
+    (first half then second: the front monitor's foot becomes a third "mouse", 0.16 m tall, too
+    tall for the stand rule). Before ``merge_other_class_evidence`` held for two objects of earlier
+    sessions, the second monitor (23 detections) went into its foot's "mouse" box by eq. 2 and its
+    id was lost (docs/decisions.md, twenty-eighth round)."""
+    m = tmp_path / "map.h5"
+    counts1, ids1 = session(first, m)
+    counts2, ids2 = session(then, m, revisit=True)
+    assert within_truth(counts1) == []
+    assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
+    assert within_truth(counts2, slack=1) == []
 
 
 def test_a_third_of_the_frame_rate_maps_what_is_in_view(session, tmp_path):
