@@ -43,6 +43,7 @@ class ModelingSettings(TypedDict):
     max_depth_ratio: Optional[float]
     floor_classes: list[str]
     ground_max_gap: float
+    floor_min_top: Optional[float]
     border: int
     occlusion_tolerance: float
     occlusion_window: int

@@ -156,3 +156,40 @@ def test_stage_1_calls_a_low_refrigerator_its_next_class(z1, rule, expected):
                       ClassFlags.from_settings(KITCHEN, cfg), floor_z=0.0)
     assert len(out.modeled.source) == 1 and out.modeled.boxes.visible[0, 4:].any()
     assert KITCHEN[int(top_class(out.scores[0]))] == expected
+
+
+# modeling.floor_min_top: no piece of furniture that stands on the floor is under 0.3 m tall.
+def test_drop_floor_blobs_by_hand():
+    """Floor at z 0.1, bound 0.3 m. Box tops 0.3 (0.2 above the floor: dropped), 0.95 (0.85:
+    kept), 0.4 (0.3 exactly: kept, not under), and a low box of a class not on the floor (a book
+    lying there, top 0.2: kept)."""
+    from ltc_cli.geometry.boxes import Boxes
+    from ltc_cli.pipeline.frame_modeling import drop_floor_blobs
+    from ltc_cli.pipeline.modeling import ModeledDetections
+
+    boxes = Boxes(np.array([[0, 0, 0.2], [1, 0, 0.5], [2, 0, 0.25], [3, 0, 0.15]]), np.zeros(4),
+                  np.array([[1.5, 0.7, 0.2], [0.5, 0.5, 0.9], [0.5, 0.5, 0.3], [0.2, 0.15, 0.1]]), np.zeros((4, 8), bool))
+    modeled = ModeledDetections(boxes, np.zeros(4, bool), np.arange(4), np.full(4, 100))
+    out = drop_floor_blobs(modeled, np.array([True, True, True, False]), 0.1, 0.3)
+    assert out.source.tolist() == [1, 2, 3]
+    assert out.boxes.center[:, 0].tolist() == [1, 2, 3]
+
+
+def chair_vector():
+    return np.array([0.05, 0.05, 0.85, 0.05])
+
+
+@pytest.mark.parametrize("z1, min_top, floor_z, boxes", [
+    (0.2, 0.3, 0.0, 0),     # a "chair" 0.2 m high on the floor: the floor, no box
+    (0.2, None, 0.0, 1),    # the rule off: a box
+    (0.2, 0.3, None, 1),    # no floor height: nothing judged
+    (0.2, 0.3, -0.2, 1),    # the floor 0.2 m lower: its top is 0.4 m above it
+    (0.9, 0.3, 0.0, 1),     # a chair's height
+])
+def test_stage_1_drops_a_chair_box_at_floor_level(z1, min_top, floor_z, boxes):
+    """The 0.5 x 0.3 m block 2 m ahead from the floor (z 0) to z1, called chair (a floor class)."""
+    cfg = defaults()
+    assert "chair" in cfg["modeling"]["floor_classes"] and cfg["modeling"]["floor_min_top"] == 0.3
+    cfg["modeling"]["floor_min_top"] = min_top
+    out = stage_1(0.0, z1, chair_vector(), cfg, floor_z)
+    assert len(out.modeled.source) == boxes
