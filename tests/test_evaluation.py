@@ -462,6 +462,38 @@ def test_a_removal_is_judged_against_the_lap_it_was_made_in(tmp_path):
     assert (d["count"], d["gt_ids"], d["map_ids"], d["duplicates_removed"]) == (3, [1, 3, 4], [2, 3, 4], [5])
 
 
+def test_a_removed_box_is_the_object_it_was_last_detected_on(tmp_path):
+    """A 1 x 1 m plant box built in lap 1 on plant 1 at (0, 0); in lap 2 plant 1 is gone and plant
+    2 (1 x 1 m) stands at (0.95, 0), overlapping the box by 0.05 x 1 m (XY IoU 0.05 / 1.95); the map
+    removes the box in lap 2. By the lap it was removed in alone, plant 2 is "deleted while
+    present"; by the lap of its last detection it was plant 1's box, and plant 1 had gone: rightly
+    removed. A second box, last detected in lap 1 on plant 3 that stays put, removed in lap 2,
+    counts (plant 3). A third box last detected in lap 2 on nothing of its class counts for nothing."""
+    from ltc_cli.map.model import REMOVED, Event, SemanticMap
+    from ltc_cli.map.store import load_map, save_map
+    from ltc_cli.tools.evaluate import evaluate_map
+    from tests.sample_maps import SESSION, add
+
+    lap1 = _gt_doc([_obj(1, "potted plant", 0, 0), _obj(3, "potted plant", 5, 0)], lap=1)
+    lap2 = _gt_doc([_obj(2, "potted plant", 0.95, 0), _obj(3, "potted plant", 5, 0)], lap=2)
+    smap = SemanticMap.new(["potted plant", "chair"])
+    smap.sessions = [dict(SESSION) for _ in range(2)]
+    add(smap, [0.0, 0, 0.5], 0.0, [1, 1, 1], "potted plant", 0.4, status=REMOVED, seen=(0, 1, 0, 9))
+    add(smap, [5.0, 0, 0.5], 0.0, [1, 1, 1], "potted plant", 0.4, status=REMOVED, seen=(0, 1, 0, 9))
+    add(smap, [9.0, 0, 0.5], 0.0, [1, 1, 1], "potted plant", 0.4, status=REMOVED, seen=(1, 1, 1, 9))
+    for oid in (1, 2, 3):
+        smap.events.append(Event(1, 20, "lap2/000020", "removed", oid, 0,
+                                 "other: clearly visible in 5 frames of this session"))
+    path = tmp_path / "m.h5"
+    save_map(smap, path)
+    smap = load_map(path)
+    d = evaluate_map(smap, lap2, [lap1])["deleted_while_present"]
+    assert (d["count"], d["present"], d["gt_ids"], d["map_ids"]) == (1, 2, [3], [2])
+    # Judged by the lap of the removal alone (no earlier lap given): plant 2 counts too.
+    d = evaluate_map(smap, lap2)["deleted_while_present"]
+    assert (d["count"], d["gt_ids"], d["map_ids"]) == (2, [2, 3], [1, 2])
+
+
 def test_ids_kept_from_two_hand_built_results():
     from ltc_cli.tools.evaluate import ids_kept
 

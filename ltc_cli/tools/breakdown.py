@@ -92,6 +92,11 @@ def missed_causes(res: dict, map_objs, gt_objs, seen_ids, removed_eq4=(), remove
     by_eq4 = set(deleted_while_present([as_eval_object(o) for o in removed_eq4], lap_gts)["gt_ids"])
     by_absent = set(deleted_while_present([as_eval_object(o) for o in removed_absent], lap_gts)["gt_ids"])
     by_picture = set(deleted_while_present([as_eval_object(o) for o in removed_picture], lap_gts)["gt_ids"])
+    if "deleted_while_present" in res:
+        # Only what the evaluator judged deleted while present (by the lap of each removed object's
+        # last detection): a box removed after its object left is no cause of another's miss.
+        judged = set(res["deleted_while_present"]["gt_ids"])
+        by_eq4, by_absent, by_picture = by_eq4 & judged, by_absent & judged, by_picture & judged
     out = {}
     for gid in res["fn_ids"]:
         if gid not in seen_ids:

@@ -400,14 +400,16 @@ def evaluate_map(smap: SemanticMap, gt: dict, previous=None, **kw) -> dict:
     removed = [as_eval_object(o) for o in map_objects(smap, np.array(ids, dtype=np.int64) - 1)]
     current = _objects_and_changes(gt)[0]
     laps = [*_earlier_laps(previous), current]
-    at_removal = None
+    at_removal = at_detection = None
+    t = smap.objects
     if len(laps) == len(smap.sessions):
         at_removal = [laps[removals[i][0]] if 0 <= removals[i][0] < len(laps) else None for i in ids]
-    t = smap.objects
+        at_detection = [laps[s] if 0 <= (s := int(t.last_session[i - 1])) < len(laps) else None for i in ids]
     since = {int(m["gt_id"]): (int(t.first_session[m["map_id"] - 1]), int(t.first_frame[m["map_id"] - 1]))
              for m in res["matches"]}
     d = deleted_while_present(removed, current, gt_at_removal=at_removal, removed_at=[removals[i] for i in ids],
-                              mapped_since=since, max_center_distance=kw.get("max_center_distance", 3.0))
+                              mapped_since=since, max_center_distance=kw.get("max_center_distance", 3.0),
+                              gt_at_detection=at_detection)
     d["lost_gt_ids"] = sorted(set(d["gt_ids"]) & set(res["fn_ids"]))
     res["deleted_while_present"] = d
     return res

@@ -139,7 +139,7 @@ def object_arrays(objs):
 
 
 def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None, removed_at=None,
-                          mapped_since=None, max_center_distance: float = 3.0) -> dict:
+                          mapped_since=None, max_center_distance: float = 3.0, gt_at_detection=None) -> dict:
     """Ground-truth objects present in the current lap that maintenance removed (at any time) while
     they stood where their removed map object was, and the map had no other object on them.
 
@@ -153,6 +153,12 @@ def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None, re
         the map object that stands on it now was created}, as comparable (session, frame) pairs.
         A removal after the object's present map object was made removed a duplicate: the map
         still had the object, under the id it has now (listed as ``duplicates_removed``).
+    gt_at_detection: per removed object, the ground-truth objects of the lap of its last detection
+        (None, or a None entry: judged by the lap it was removed in alone). The object it overlaps
+        best among those of its class is the one it was a view of; it counts only when that very
+        object (same id) still stood on its box in the lap it was removed in. A plant's box removed
+        after the plant was taken away is right, even where another plant brought in lap 2 touches
+        its box by a few centimetres.
 
     Each removed object is a view of the ground-truth object it overlaps best among those of its
     class in the lap it was removed in (XY IoU > 0, centres within ``max_center_distance``; ties:
@@ -169,11 +175,20 @@ def deleted_while_present(removed_objects, gt_objects, *, gt_at_removal=None, re
     n = len(removed_objects)
     gt_at_removal = [None] * n if gt_at_removal is None else gt_at_removal
     removed_at = [None] * n if removed_at is None else removed_at
+    gt_at_detection = [None] * n if gt_at_detection is None else gt_at_detection
     mapped_since = mapped_since or {}
     gt_ids, map_ids, duplicates = set(), [], []
-    for r, lap_gt, when in zip(removed_objects, gt_at_removal, removed_at):
+    for r, lap_gt, det_gt, when in zip(removed_objects, gt_at_removal, gt_at_detection, removed_at):
         lap_gt = gt_objects if lap_gt is None else lap_gt
-        j = _best_same_class(r, lap_gt, max_center_distance)
+        if det_gt is None:
+            j = _best_same_class(r, lap_gt, max_center_distance)
+        else:
+            k = _best_same_class(r, det_gt, max_center_distance)
+            if k is None:  # never a view of an object of its class
+                continue
+            # That object, if it still stood on the box when the box was removed.
+            same = [i for i, g in enumerate(lap_gt) if int(g.id) == int(det_gt[k].id)]
+            j = same[0] if same and _best_same_class(r, [lap_gt[same[0]]], max_center_distance) == 0 else None
         if j is None or int(lap_gt[j].id) not in present:
             continue
         gid = int(lap_gt[j].id)
