@@ -393,7 +393,8 @@ def evaluate_map(smap: SemanticMap, gt: dict, previous=None, **kw) -> dict:
     map's event log and the objects' first session and frame), with
     ``lost_gt_ids``: those of them that no map object stands on now (FN). When the laps given
     (earlier ones and this one) are as many as the map's sessions, session k's removals are judged
-    against lap k + 1's objects; otherwise against this lap's."""
+    against lap k + 1's objects, each removed object being the one it overlapped best in the lap of
+    its last detection; otherwise against this lap's."""
     res = evaluate(map_objects(smap), gt, previous_gt=previous, **kw)
     removals = {i: at for i, at in maintenance_removals(smap.events).items() if 1 <= i <= smap.objects.n}
     ids = sorted(removals)
