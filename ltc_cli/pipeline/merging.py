@@ -14,6 +14,7 @@ from ltc_cli.pipeline.association import match_reach
 from ltc_cli.pipeline.deduplication import (
     PIECES_KEY, enclosed_part, greedy_merges, label_survivor, merge_pairs, stand_pairs,
 )
+from ltc_cli.pipeline.frame_modeling import not_whole
 from ltc_cli.pipeline.integration import (
     confirmed_side, enclosing_box, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
@@ -31,8 +32,12 @@ class InstanceMerging:
         if rows.size < 2:
             return 0
         a_cfg = self.cfg["association"]
-        pairs = merge_pairs(t.boxes(rows), top_class(t.scores[rows]), self.metric.distance, a_cfg,
-                            match_reach(self.metric, a_cfg), t.defined[rows], t.first_session[rows], self.session,
+        top = top_class(t.scores[rows])
+        # defined_min_width holds for map objects too: a Defined "couch" end of a bed that its class
+        # evidence later calls bed is a part of the bed (stage 1 judged it under its label then).
+        defined = not_whole(t.defined[rows], t.size[rows, :2].max(axis=1), self.per_class.whole_width[top])
+        pairs = merge_pairs(t.boxes(rows), top, self.metric.distance, a_cfg,
+                            match_reach(self.metric, a_cfg), defined, t.first_session[rows], self.session,
                             t.scores[rows], self.cfg["integration"]["defined_part_volume"],
                             self.per_class.adjoin_share if a_cfg["merge_adjoining"] else None,
                             self.per_class.container_width)
