@@ -167,8 +167,9 @@ def test_drop_floor_blobs_by_hand():
     from ltc_cli.pipeline.frame_modeling import drop_floor_blobs
     from ltc_cli.pipeline.modeling import ModeledDetections
 
-    boxes = Boxes(np.array([[0, 0, 0.2], [1, 0, 0.5], [2, 0, 0.25], [3, 0, 0.15]]), np.zeros(4),
-                  np.array([[1.5, 0.7, 0.2], [0.5, 0.5, 0.9], [0.5, 0.5, 0.3], [0.2, 0.15, 0.1]]), np.zeros((4, 8), bool))
+    sizes = np.array([[1.5, 0.7, 0.2], [0.5, 0.5, 0.9], [0.5, 0.5, 0.3], [0.2, 0.15, 0.1]])
+    boxes = Boxes(np.array([[0, 0, 0.2], [1, 0, 0.5], [2, 0, 0.25], [3, 0, 0.15]]), np.zeros(4), sizes,
+                  np.zeros((4, 8), bool))
     modeled = ModeledDetections(boxes, np.zeros(4, bool), np.arange(4), np.full(4, 100))
     out = drop_floor_blobs(modeled, np.array([True, True, True, False]), 0.1, 0.3)
     assert out.source.tolist() == [1, 2, 3]

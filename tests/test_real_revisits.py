@@ -1,7 +1,8 @@
 """A robot drives its route again in another way: tum-fr1-rpy (../shared) mapped with the shared
 fp32 YOLOv8n-seg, then revisited in reverse frame order, at half the frame rate, with the other
-half of the frames, along the other half of the route, and in a mix of these over four sessions. Every id of the first session stays and every class stays within the
-counts of the recording's README (issue 9; docs/decisions.md, fifteenth round: before
+half of the frames, along the other half of the route, and in a mix of these over four
+sessions. Every id of the first session stays and every class stays within the counts of the
+recording's README (issue 9; docs/decisions.md, fifteenth round: before
 ``association.established_apart`` the reversed revisit kept 83 % of the ids, the half-rate
 sessions 70 % and the four-session mix 92 %). Skipped when ../shared is absent.
 
