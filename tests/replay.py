@@ -1,6 +1,6 @@
 """Plugins for passes over one real recording (tests/test_real_revisits.py and
 benchmarks/bench_real.py): the shared model detecting each frame once and replaying it, and a
-reader that drives a recording in reverse order or at a lower frame rate."""
+reader that drives a recording in reverse order, at a lower frame rate, or along part of it."""
 
 from __future__ import annotations
 
