@@ -75,21 +75,27 @@ END = ([2.3, 0.05, 0.375], [0.6, 0.5, 0.75], True)
 REST = ([2.45, 0.71, 0.375], [0.9, 0.78, 0.75], False)
 
 
+def two_object_mapper(cfg, classes, scores, objects):
+    """(object table, rows, mapper at session 0) of a map holding ``objects`` ((centre, size,
+    Defined) each, axis-aligned, 10 detections, session 0) with the class vector ``scores``."""
+    smap = SemanticMap.new(classes)
+    t = smap.objects
+    rows = [t.append(center=c, yaw=0.0, size=s, visible=np.ones(8, bool), defined=d, scores=np.array(scores),
+                     n_det=10, status=ACTIVE, first_session=0, last_session=0) for c, s, d in objects]
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=0)
+    for r in rows:
+        mapper.index.insert(r, t.center[r], t.size[r])
+    return t, rows, mapper
+
+
 def test_a_table_end_and_the_rest_enclose():
     """With merge_adjoining the two become one object whose box encloses both (the Defined end is
     the smaller piece: a part, not the whole); without it they stay two."""
     for flag, active in ((True, 1), (False, 2)):
         cfg = defaults()
         cfg["association"]["merge_adjoining"] = flag
-        smap = SemanticMap.new(["dining table", "chair"])
-        t = smap.objects
-        rows = [t.append(center=c, yaw=0.0, size=s, visible=np.ones(8, bool), defined=d,
-                         scores=np.array([0.9, 0.1, 0.0]), n_det=10, status=ACTIVE, first_session=0,
-                         last_session=0) for c, s, d in (END, REST)]
-        mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                        plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=0)
-        for r in rows:
-            mapper.index.insert(r, t.center[r], t.size[r])
+        t, rows, mapper = two_object_mapper(cfg, ["dining table", "chair"], [0.9, 0.1, 0.0], (END, REST))
         depth, _ = render([(2.0, 2.6, -0.2, 0.3, 0.0, 0.75), (2.0, 2.9, 0.32, 1.1, 0.0, 0.75)], wall_x=4.0)
         mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
         assert int((t.status[rows] == ACTIVE).sum()) == active
@@ -113,16 +119,9 @@ def test_a_short_defined_end_of_a_bed_joins_the_bed():
     for min_width, active in (({"bed": 1.5}, 1), ({}, 2)):
         cfg = defaults()
         cfg["modeling"]["defined_min_width"] = min_width
-        smap = SemanticMap.new(["bed", "chair"])
-        t = smap.objects
-        rows = [t.append(center=c, yaw=0.0, size=s, visible=np.ones(8, bool), defined=True,
-                         scores=np.array([0.9, 0.0, 0.1]), n_det=10, status=ACTIVE, first_session=0,
-                         last_session=0) for c, s in (([3.4, 0.0, 0.3], [2.0, 1.6, 0.6]),
-                                                      ([2.25, 0.0, 0.3], [0.5, 1.2, 0.6]))]
-        mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                        plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=0)
-        for r in rows:
-            mapper.index.insert(r, t.center[r], t.size[r])
+        t, rows, mapper = two_object_mapper(cfg, ["bed", "chair"], [0.9, 0.0, 0.1],
+                                            (([3.4, 0.0, 0.3], [2.0, 1.6, 0.6], True),
+                                             ([2.25, 0.0, 0.3], [0.5, 1.2, 0.6], True)))
         depth, _ = render([(2.0, 4.4, -0.8, 0.8, 0.0, 0.6)], wall_x=6.0)
         mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
         assert int((t.status[rows] == ACTIVE).sum()) == active
