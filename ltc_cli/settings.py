@@ -69,10 +69,12 @@ class AssociationSettings(TypedDict):
     stand_gap: Optional[float]
     merge_min_overlap: Optional[float]
     established_apart: bool
+    defined_apart_detections: Optional[int]
     labels_apart: bool
     tentative_reshapes: bool
     stand_margin: float
     stand_low: Optional[float]
+    stand_centred: Optional[float]
     part_label_share: Optional[float]
     container_max_width: Optional[dict[str, float]]
     merge_containment: Optional[float]

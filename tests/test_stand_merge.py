@@ -9,7 +9,7 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
-from ltc_cli.pipeline.deduplication import duplicate_pairs, stand_pairs
+from ltc_cli.pipeline.deduplication import centred_under, duplicate_pairs, stand_pairs
 from ltc_cli.pipeline.integration import confirmed_side
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera
@@ -150,6 +150,7 @@ def test_on_a_revisit_two_established_monitors_stay_two(apart):
     cfg = defaults()
     cfg["association"]["threshold_same_class"] = 0.5
     cfg["association"]["established_apart"] = apart
+    cfg["association"]["defined_apart_detections"] = None  # this test is of established_apart alone
     smap = SemanticMap.new(CLASSES)
     v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
     v[TV], v[-1] = 0.9, 0.0
@@ -240,3 +241,121 @@ def test_a_tentative_object_of_another_class_does_not_reshape_a_confirmed_one(re
     assert int(np.argmax(t.scores[0][:-1])) == TV
     same = np.allclose(t.center[0], tv_box[0]) and np.allclose(t.size[0], tv_box[1])
     assert same == (not reshapes and table_det < cfg["maintenance"]["min_detections"])
+
+
+def test_centred_under_is_judged_in_the_larger_boxs_own_frame():
+    """centred_under by hand: box 1 at the origin, 0.5 long along its own x axis and 0.3 wide,
+    turned 90 degrees (its length along world y). A centre 0.07 m along world y is 0.07 / 0.5 =
+    0.14 of its length from its middle (within 0.15); 0.07 m along world x is 0.07 / 0.3 = 0.23 of
+    its width (not within 0.15, within 0.25)."""
+    def centred(xy, share):
+        b = Boxes(np.array([[xy[0], xy[1], 0.05], [0.0, 0.0, 0.2]]), np.array([0.0, np.pi / 2]),
+                  np.array([[0.05, 0.05, 0.1], [0.5, 0.3, 0.4]]), np.ones((2, 8), bool))
+        return bool(centred_under(b, share)[0, 1])
+
+    assert centred((0.0, 0.07), 0.15)
+    assert not centred((0.07, 0.0), 0.15)
+    assert centred((0.07, 0.0), 0.25)
+    assert not centred((0.0, 0.08), 0.15)  # 0.16 of the length
+
+
+# A screen whose box reaches the desk, with its foot inside it and a mug by its end (yaw 0):
+# 0 tv    x 2.05..2.35  y -0.25..0.25  z 0.80..1.20  (0.3 deep, 0.5 long, 0.4 tall)
+# 1 mouse x 2.11..2.31  y -0.05..0.09  z 0.78..0.94  the foot: 0.16 tall (0.4 of the screen, over
+#         stand_low 0.3), its top 0.14 above the screen's bottom (over stand_gap 0.05) and in its
+#         lower half (under 1.00), its bottom 0.02 below; its centre 0.01 / 0.3 = 0.033 of the
+#         screen's depth and 0.02 / 0.5 = 0.04 of its length from the screen's centre
+# 2 cup   x 2.10..2.30  y  0.12..0.26  z 0.78..0.94  the same box 0.19 along y: 0.38 of the length
+FOOT_CENTER = [[2.2, 0.0, 1.0], [2.21, 0.02, 0.86], [2.2, 0.19, 0.86]]
+FOOT_SIZE = [[0.3, 0.5, 0.4], [0.2, 0.14, 0.16], [0.2, 0.14, 0.16]]
+
+
+def foot_boxes(center=FOOT_CENTER, size=FOOT_SIZE) -> Boxes:
+    return Boxes(np.array(center, float), np.zeros(len(center)), np.array(size, float),
+                 np.ones((len(center), 8), bool))
+
+
+def test_a_foot_centred_under_its_screen_is_its_part_a_mug_by_its_end_is_not():
+    """association.stand_centred (issue 9, twenty-ninth round), by hand on the boxes above."""
+    top = np.array([TV, MOUSE, CUP])
+    assert stand_pairs(foot_boxes(), top, 0.05, 0.1, low=0.3) == []
+    pairs = stand_pairs(foot_boxes(), top, 0.05, 0.1, low=0.3, centred=0.25)
+    assert [(a, b) for _, a, b in pairs] == [(0, 1)]
+    assert pairs[0][0] == pytest.approx(0.14)  # |0.80 - 0.94|
+    # The mug's centre is 0.38 of the length from the middle: within 0.4 it would be a foot too.
+    assert sorted((a, b) for _, a, b in stand_pairs(foot_boxes(), top, 0.05, 0.1, low=0.3, centred=0.4)) \
+        == [(0, 1), (0, 2)]
+    # Over half the screen's height (0.22 > 0.20), or its top in the screen's upper half (the box
+    # raised 0.07: top 1.01 > 1.00, bottom 0.85 no longer below the screen's 0.80 either): no foot.
+    tall = [FOOT_SIZE[0], [0.2, 0.14, 0.22], FOOT_SIZE[2]]
+    assert stand_pairs(foot_boxes(size=tall), top, 0.05, 0.1, low=0.3, centred=0.25) == []
+    raised = [FOOT_CENTER[0], [2.21, 0.02, 0.93], FOOT_CENTER[2]]
+    assert stand_pairs(foot_boxes(center=raised), top, 0.05, 0.1, low=0.3, centred=0.25) == []
+
+
+@pytest.mark.parametrize("centred", [None, 0.25])
+def test_through_the_mapper_the_centred_foot_joins_the_screen(centred):
+    """The screen (0, 40 detections) and its centred foot (1, "mouse", 60) of the boxes above, in
+    view of a frame with no detections (static policy): with stand_centred the foot merges into the
+    screen, which keeps its box; without it (stand_low 0.3 and stand_gap 0.05 alone) both stay."""
+    cfg = defaults()
+    cfg["association"]["stand_centred"] = centred
+    smap = SemanticMap.new(CLASSES)
+    for i, (cls, n_det) in enumerate(((TV, 40), (MOUSE, 60))):
+        v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
+        v[cls], v[-1] = 0.9, 0.0
+        smap.objects.append(center=np.array(FOOT_CENTER[i], float), yaw=0.0, size=np.array(FOOT_SIZE[i], float),
+                            visible=np.ones(8, bool), defined=True, scores=v, n_det=n_det, status=ACTIVE)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    t = mapper.map.objects
+    assert list(t.status[:2]) == ([ACTIVE, ACTIVE] if centred is None else [ACTIVE, MERGED])
+    assert res.merged == (0 if centred is None else 1)
+    np.testing.assert_allclose(t.size[0], FOOT_SIZE[0])
+
+
+def test_two_defined_boxes_each_well_seen_keep_the_overlap_test():
+    """defined_apart_detections (issue 9, twenty-ninth round): the two monitors of the tests above
+    (footprints sharing 0.04 of either, eq. 2 standing at 0), both Defined and made in this session.
+    Each detected at least that often, they keep merge_min_overlap and stay two; one of them seen
+    less, the Defined exemption stands and they merge; both well seen but sharing half their
+    footprints (0.25 apart), they merge."""
+    def merged(well_seen, x=0.48):
+        pair = Boxes(np.array([[0.0, 0, 1], [x, 0, 1]]), np.zeros(2), np.array([[0.5, 0.1, 0.4]] * 2),
+                     np.ones((2, 8), bool))
+        return [(a, b) for _, a, b in duplicate_pairs(
+            pair, np.array([TV, TV]), lambda one, many: np.zeros(len(many)), 0.4, 0.25, None, None,
+            min_overlap=0.2, defined=np.array([True, True]), established=np.array([False, False]),
+            well_seen=np.array(well_seen))]
+
+    assert merged([True, True]) == []
+    assert merged([True, False]) == [(0, 1)]
+    assert merged([False, False]) == [(0, 1)]
+    assert merged([True, True], x=0.25) == [(0, 1)]
+
+
+@pytest.mark.parametrize("n_det, apart", [((30, 12), True), ((30, 4), False), (None, False)])
+def test_through_the_mapper_two_well_seen_monitors_of_one_session_stay_two(n_det, apart):
+    """As the revisit test above, but both monitors made in this very session (0): detected 30 and
+    12 times (both at least defined_apart_detections 5) they stay two; 30 and 4, or with the setting
+    off (None), the older absorbs the other (eq. 2 over 8 vertices 0.48 under the 0.5 set here)."""
+    cfg = defaults()
+    cfg["association"]["threshold_same_class"] = 0.5
+    if n_det is None:
+        cfg["association"]["defined_apart_detections"] = None
+        n_det = (30, 12)
+    smap = SemanticMap.new(CLASSES)
+    v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
+    v[TV], v[-1] = 0.9, 0.0
+    for y, n in zip((-0.24, 0.24), n_det):
+        smap.objects.append(center=np.array([2.2, y, 1.2]), yaw=0.0, size=np.array([0.1, 0.5, 0.4]),
+                            visible=np.ones(8, bool), defined=True, scores=v, n_det=n, status=ACTIVE,
+                            first_session=0, last_session=0)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    assert list(mapper.map.objects.status[:2]) == ([ACTIVE, ACTIVE] if apart else [ACTIVE, MERGED])
+    assert res.merged == (0 if apart else 1)

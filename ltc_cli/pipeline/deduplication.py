@@ -26,7 +26,8 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
                     defined: np.ndarray | None = None, established: np.ndarray | None = None,
                     labels_apart: bool = False, max_width: np.ndarray | None = None,
                     scores: np.ndarray | None = None,
-                    min_evidence: float | None = None) -> list[tuple[float, int, int]]:
+                    min_evidence: float | None = None,
+                    well_seen: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -47,6 +48,10 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     With ``labels_apart`` two Defined boxes of different top classes are not exempt either: one
     object under two labels shares its ground, and a whole cup and a whole mouse 26 cm apart on a
     desk came under eq. 2's other-class threshold over the six vertices both showed.
+    ``well_seen`` ((M,) bool: detected often in this session) counts as ``established`` for that
+    test: two Defined screens side by side, each detected a dozen times and more, sharing no
+    ground, are two screens (tum-fr1-rpy: eq. 2 over their 8 vertices 0.34 m, under the 0.4 of one
+    class, and the averaged box stood between the two monitors on neither).
 
     ``max_width`` (C+1,): per class, the widest footprint that joins a partial object of another
     class by containment, inside or around it (:func:`~ltc_cli.pipeline.association.too_wide`;
@@ -99,8 +104,11 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             apart = ground_shares(boxes.take(slice(a, a + 1)), boxes.take(rest)) < min_overlap
             if defined is not None:  # all 8 vertices of two Defined boxes are compared
                 exempt = defined[a] & defined[rest]
-                if established is not None:
-                    exempt &= ~(established[a] & established[rest])
+                if established is not None or well_seen is not None:
+                    kept = np.zeros(m, bool) if established is None else np.asarray(established, bool)
+                    if well_seen is not None:
+                        kept = kept | np.asarray(well_seen, bool)
+                    exempt &= ~(kept[a] & kept[rest])
                 if labels_apart:
                     exempt &= top[a] == top[rest]
                 apart &= ~exempt
@@ -257,7 +265,7 @@ def adjoining_part_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, sha
 
 def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: float = 0.05,
                 min_cover: float = 0.5, established: np.ndarray | None = None,
-                low: float | None = None) -> list[tuple[float, int, int]]:
+                low: float | None = None, centred: float | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view, top classes (M,)) in which a smaller object of another
     class stands right under a larger one: its top within ``max_gap`` metres of the other's bottom,
     its bottom lower, and at least ``min_cover`` of its footprint under the other's footprint grown
@@ -278,6 +286,15 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     screen is not: on the level tum-fr1-rpy map a mug 0.13-0.17 m tall in front of one end of a
     monitor had its top within 5 cm of the screen's bottom and went into it three times in a pass,
     while the feet the detector calls "mouse" are 0.05-0.12 m under screens of 0.37-0.38 m.
+
+    ``centred``: when given, also a smaller object at most half the larger one's height, its top
+    in the larger one's lower half (and not below its bottom by more than ``max_gap``), whose
+    footprint's centre lies within this share of the larger one's length and of its width from the
+    larger one's centre (in the larger one's frame), whatever ``low`` says: a foot stands under the
+    middle of its screen, inside the screen's box when that box reaches down to the desk (on
+    tum-fr1-rpy a front monitor's foot 0.15-0.17 m tall, 1-5 % of the screen's length and 2-22 % of
+    its depth from its middle, its top 0.30-0.32 of the screen's height inside it), while a mug
+    beside the screen's end stood 32-37 % of its length and 45-47 % of its depth from it.
     """
     m = len(boxes)
     if max_gap is None or m < 2:
@@ -288,19 +305,32 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     area = boxes.size[:, 0] * boxes.size[:, 1]
     grown = Boxes(boxes.center, boxes.yaw, boxes.size + np.array([2 * margin, 2 * margin, 0.0]),
                   np.zeros((m, 8), bool))
+    height = boxes.size[:, 2]
     gap = np.abs(z0[None, :] - z1[:, None])  # [a, b]: a's top to b's bottom
-    ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & (gap <= max_gap) \
-        & (z0[:, None] < z0[None, :])
+    under = gap <= max_gap
+    if low is not None:
+        under &= height[:, None] <= low * height[None, :]
+    if centred is not None:
+        under |= (height[:, None] <= 0.5 * height[None, :]) & (z1[:, None] >= z0[None, :] - max_gap) \
+            & (z1[:, None] <= z0[None, :] + 0.5 * height[None, :]) & centred_under(boxes, centred)
+    ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & under & (z0[:, None] < z0[None, :])
     if established is not None:
         ok &= ~np.asarray(established, dtype=bool)[:, None]
-    if low is not None:
-        ok &= boxes.size[:, None, 2] <= low * boxes.size[None, :, 2]
     out = []
     for a, b in zip(*np.nonzero(ok)):
         cover = convex_intersection_area(boxes.corners[a:a + 1, :4, :2], grown.corners[b:b + 1, :4, :2])[0] / area[a]
         if cover >= min_cover:
             out.append((float(gap[a, b]), min(int(a), int(b)), max(int(a), int(b))))
     return sorted(out)
+
+
+def centred_under(boxes: Boxes, share: float) -> np.ndarray:
+    """(M, M) bool, [a, b]: box a's XY centre lies within ``share`` of box b's length along b's own
+    x axis and within ``share`` of its width along b's y axis from b's centre (b's yaw)."""
+    d = boxes.center[:, None, :2] - boxes.center[None, :, :2]  # [a, b]: a's centre from b's
+    c, s = np.cos(boxes.yaw)[None, :], np.sin(boxes.yaw)[None, :]
+    along, across = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
+    return (np.abs(along) <= share * boxes.size[None, :, 0]) & (np.abs(across) <= share * boxes.size[None, :, 1])
 
 
 def enclosed_part(a, b) -> bool:
@@ -330,7 +360,8 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                 session: int | None = None, scores: np.ndarray | None = None,
                 part_volume: float | None = None,
                 adjoin_share: np.ndarray | None = None,
-                max_width: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                max_width: np.ndarray | None = None,
+                n_det: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
     association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
     inside the other by ``merge_containment``, default ``containment``), then one object under two
@@ -341,15 +372,19 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     ``first_session``, objects made before it are ``established`` for duplicate_pairs.
     ``adjoin_share`` (C+1,): pieces of one long object last (:func:`adjoining_part_pairs`; None: none).
     ``max_width`` (C+1,): as for duplicate_pairs (``container_max_width``); ``scores`` (M, C+1):
-    the class vectors, for the labelled parts and for duplicate_pairs' ``merge_other_class_evidence``."""
+    the class vectors, for the labelled parts and for duplicate_pairs' ``merge_other_class_evidence``.
+    ``n_det`` (M,): detections so far, for ``defined_apart_detections`` (None: that rule stands down)."""
     overlap = a_cfg["containment"] is not None
     established = first_session < session if a_cfg["established_apart"] and first_session is not None \
         and session is not None else None
+    well_seen = None if n_det is None or a_cfg["defined_apart_detections"] is None \
+        else np.asarray(n_det) >= a_cfg["defined_apart_detections"]
     pairs = duplicate_pairs(boxes, top, distance, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
                             overlap and (a_cfg["merge_containment"] or a_cfg["containment"]),
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
                             a_cfg["other_class_scale"], a_cfg["merge_min_overlap"], defined, established,
-                            a_cfg["labels_apart"], max_width, scores, a_cfg["merge_other_class_evidence"])
+                            a_cfg["labels_apart"], max_width, scores, a_cfg["merge_other_class_evidence"],
+                            well_seen)
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

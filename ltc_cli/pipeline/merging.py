@@ -40,7 +40,7 @@ class InstanceMerging:
                             match_reach(self.metric, a_cfg), defined, t.first_session[rows], self.session,
                             t.scores[rows], self.cfg["integration"]["defined_part_volume"],
                             self.per_class.adjoin_share if a_cfg["merge_adjoining"] else None,
-                            self.per_class.container_width)
+                            self.per_class.container_width, t.n_det[rows])
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
                                                                           if key < PIECES_KEY}
@@ -60,7 +60,7 @@ class InstanceMerging:
         vol = np.prod(t.size[rows], axis=1)
         pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"],
                             established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None,
-                            low=a_cfg["stand_low"])
+                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"])
         merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
         for keep, drop in merges:
             keep, drop = int(rows[keep]), int(rows[drop])
