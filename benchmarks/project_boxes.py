@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import zlib
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
@@ -29,7 +30,8 @@ EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4),
 
 
 def colour(name: str):
-    h = (hash(name) * 2654435761) % 180
+    # crc32, not hash(): str hashes change from run to run, and a class keeps its colour across pictures.
+    h = (zlib.crc32(name.encode()) * 2654435761) % 180
     hsv = np.uint8([[[h, 220, 255]]])
     return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
 
