@@ -48,10 +48,11 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     With ``labels_apart`` two Defined boxes of different top classes are not exempt either: one
     object under two labels shares its ground, and a whole cup and a whole mouse 26 cm apart on a
     desk came under eq. 2's other-class threshold over the six vertices both showed.
-    ``well_seen`` ((M,) bool: detected often in this session) counts as ``established`` for that
-    test: two Defined screens side by side, each detected a dozen times and more, sharing no
-    ground, are two screens (tum-fr1-rpy: eq. 2 over their 8 vertices 0.34 m, under the 0.4 of one
-    class, and the averaged box stood between the two monitors on neither).
+    ``well_seen`` ((M,) bool: detected at least ``defined_apart_detections`` times) counts as
+    ``established`` for that test, within a session too: two Defined screens side by side, each
+    detected a dozen times and more, sharing no ground, are two screens (tum-fr1-rpy: eq. 2 over
+    their 8 vertices 0.34 m, under the 0.4 of one class, and the averaged box stood between the
+    two monitors, on neither).
 
     ``max_width`` (C+1,): per class, the widest footprint that joins a partial object of another
     class by containment, inside or around it (:func:`~ltc_cli.pipeline.association.too_wide`;
@@ -105,10 +106,10 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             if defined is not None:  # all 8 vertices of two Defined boxes are compared
                 exempt = defined[a] & defined[rest]
                 if established is not None or well_seen is not None:
-                    kept = np.zeros(m, bool) if established is None else np.asarray(established, bool)
+                    held = np.zeros(m, bool) if established is None else np.asarray(established, bool)
                     if well_seen is not None:
-                        kept = kept | np.asarray(well_seen, bool)
-                    exempt &= ~(kept[a] & kept[rest])
+                        held = held | np.asarray(well_seen, bool)
+                    exempt &= ~(held[a] & held[rest])
                 if labels_apart:
                     exempt &= top[a] == top[rest]
                 apart &= ~exempt
