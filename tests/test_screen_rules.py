@@ -166,3 +166,33 @@ def test_default_never_calls_a_table_box_shorter_than_any_table_whole(half_width
     assert out.modeled.boxes.visible.all()
     assert out.modeled.boxes.size[0, :2].max() == pytest.approx(2 * half_width, abs=0.03)
     assert out.modeled.defined.tolist() == [defined]
+
+
+def test_deepest_sides_by_hand():
+    """modeling.max_short_side (issue 9, twenty-ninth round) with max_depth_ratio: class depths 0.1
+    (a tv), none, 0.2 (a book); ratio 6 gives 0.6, no bound, 1.2; the per-class bounds inf, 0.5,
+    0.6 cap them at 0.6, 0.5, 0.6."""
+    from ltc_cli.pipeline.frame_modeling import deepest_sides
+
+    prior = np.array([0.1, np.nan, 0.2])
+    np.testing.assert_allclose(deepest_sides(prior, 6.0, None), [0.6, np.inf, 1.2])
+    np.testing.assert_allclose(deepest_sides(prior, 6.0, np.array([np.inf, 0.5, 0.6])), [0.6, 0.5, 0.6])
+    np.testing.assert_allclose(deepest_sides(prior, None, np.array([np.inf, 0.5, 0.6])), [np.inf, 0.5, 0.6])
+
+
+@pytest.mark.parametrize("steps, bound, boxes", [
+    (6, None, 1),   # no per-class bound (and no ratio): the 0.5 m deep box stays
+    (6, 0.3, 0),    # 0.5 m deep, over 0.3: no box
+    (2, 0.3, 1),    # 0.1 m deep: kept
+])
+def test_a_box_deeper_than_its_class_ever_is_gives_no_box(steps, bound, boxes):
+    """The staircase of the test above, detected as tv, max_depth_ratio off: the shorter side of its
+    box runs from the first face's front to the last one's, 0.1 (steps - 1) m (0.5 and 0.1; the
+    last face's back is hidden behind its own front)."""
+    cfg = defaults()
+    cfg["modeling"]["max_depth_ratio"] = None
+    cfg["modeling"]["max_short_side"] = {} if bound is None else {"tv": bound}
+    out = stage_1(staircase(steps), vector(TV, 0.8), cfg)
+    assert len(out.modeled.source) == boxes
+    if boxes:
+        assert out.modeled.boxes.size[0, :2].min() == pytest.approx(0.1 * (steps - 1), abs=0.03)

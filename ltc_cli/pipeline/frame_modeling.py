@@ -37,7 +37,8 @@ class ClassFlags:
     None: as ``pixel_weights`` says for all); max_gap and higher_is: the height above the floor
     that the bottom of a box of the class never lies over (inf: none), and the class it is then;
     min_top and top_under_is: the height above the floor that its top, seen, never lies under
-    (-inf: none), and the class it is then.
+    (-inf: none), and the class it is then; max_depth: the shorter horizontal side a box of the
+    class is never over (inf: none; None: no class has one).
     """
 
     moving: np.ndarray
@@ -55,6 +56,7 @@ class ClassFlags:
     higher_is: np.ndarray | None = None
     min_top: np.ndarray | None = None
     top_under_is: np.ndarray | None = None
+    max_depth: np.ndarray | None = None
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassFlags":
@@ -71,6 +73,7 @@ class ClassFlags:
                               for c in classes] + [-1]))
 
         wholes = config["modeling"].get("defined_min_width") or {}
+        deepest = config["modeling"].get("max_short_side") or {}
         weights = config["modeling"]["pixel_weights"]
         weighted = np.array([c in weights for c in classes] + [False]) if isinstance(weights, list) else None
         return cls(np.array([c in moving for c in classes] + [False]),
@@ -79,7 +82,8 @@ class ClassFlags:
                    *bounds("taller_than", "height"), *bounds("wider_than", "width"), weighted,
                    *bounds("narrower_than", "width", 0.0),
                    np.array([float(wholes.get(c, 0.0)) for c in classes] + [0.0]),
-                   *bounds("higher_than", "gap"), *bounds("top_under", "height", -np.inf))
+                   *bounds("higher_than", "gap"), *bounds("top_under", "height", -np.inf),
+                   np.array([float(deepest.get(c, np.inf)) for c in classes] + [np.inf]) if deepest else None)
 
 
 @dataclass
@@ -142,8 +146,10 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
                                weighted=weighted_detections(flags.weighted, top),
                                max_floor_gap=None if flags.max_gap is None else flags.max_gap[top])
     ratio = config["modeling"].get("max_depth_ratio")
-    if ratio is not None and len(modeled.source):
-        modeled = drop_deep_slabs(modeled, flags.depth_prior[top[modeled.source]], ratio)
+    if (ratio is not None or flags.max_depth is not None) and len(modeled.source):
+        src = top[modeled.source]
+        modeled = drop_deep_slabs(modeled, deepest_sides(flags.depth_prior[src], ratio,
+                                                         None if flags.max_depth is None else flags.max_depth[src]))
     min_top = config["modeling"]["floor_min_top"]
     if min_top is not None and floor_z is not None and len(modeled.source):
         modeled = drop_floor_blobs(modeled, flags.grounded[top[modeled.source]], floor_z, min_top)
@@ -181,12 +187,22 @@ def weighted_detections(weighted_classes: np.ndarray | None, top: np.ndarray) ->
     return weighted_classes[top]
 
 
-def drop_deep_slabs(modeled: ModeledDetections, depth_prior: np.ndarray, ratio: float) -> ModeledDetections:
-    """The modeled boxes without those of classes with a typical depth (``depth_prior`` (M,), NaN:
-    none) whose shorter horizontal side exceeds ``ratio`` times it: a "tv" 0.88 m deep is a mask
-    that spilled over the desk in front of the screen (tum-fr1-rpy), and its box would grow or move
-    whatever object it matched."""
-    deep = np.nan_to_num(depth_prior, nan=np.inf) * ratio < modeled.boxes.size[:, :2].min(axis=1)
+def deepest_sides(depth_prior: np.ndarray, ratio: float | None, max_depth: np.ndarray | None) -> np.ndarray:
+    """(M,) the longest shorter horizontal side a box of each detection's class may have: ``ratio``
+    times its class's typical depth (``depth_prior`` (M,), NaN: none; ``ratio`` None: no bound),
+    and at most ``max_depth`` (M,) (inf or None: no bound)."""
+    limit = np.full(len(depth_prior), np.inf)
+    if ratio is not None:
+        limit = np.nan_to_num(np.asarray(depth_prior, dtype=float), nan=np.inf) * ratio
+    return limit if max_depth is None else np.minimum(limit, max_depth)
+
+
+def drop_deep_slabs(modeled: ModeledDetections, deepest: np.ndarray) -> ModeledDetections:
+    """The modeled boxes without those whose shorter horizontal side exceeds ``deepest`` (M,), see
+    :func:`deepest_sides`: a "tv" 0.88 m deep is a mask that spilled over the desk in front of the
+    screen (tum-fr1-rpy), and its box would grow or move whatever object it matched; a "book" 0.84 x
+    0.96 m is a mask over a far desk's papers."""
+    deep = deepest < modeled.boxes.size[:, :2].min(axis=1)
     if not deep.any():
         return modeled
     return modeled.take(np.flatnonzero(~deep))
