@@ -9,7 +9,8 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
-from ltc_cli.pipeline.deduplication import centred_under, duplicate_pairs, stand_pairs
+from ltc_cli.pipeline.deduplication import duplicate_pairs
+from ltc_cli.pipeline.stands import centred_under, stand_pairs
 from ltc_cli.pipeline.integration import confirmed_side
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera

@@ -3,7 +3,8 @@ object and merge after a frame, and which of two keeps its id. Pure numpy over b
 merge step (merging.py) applies these decisions.
 
 Eq. 2 and containment find duplicates of one class (the paper); the other rules here find one object
-under two labels, a later partial view of a Defined object, and a part standing under its object.
+under two labels and a later partial view of a Defined object (a part standing under its object:
+stands.py).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.geometry.polygons import convex_intersection_area, pairwise_ious_arrays
+from ltc_cli.geometry.polygons import pairwise_ious_arrays
 from ltc_cli.pipeline.association import (
     footprint_gaps, ground_shares, half_diagonals, pairwise_containment, similar_volume, thresholds_for, too_wide,
     unlike_heights,
@@ -262,76 +263,6 @@ def adjoining_part_pairs(boxes: Boxes, top: np.ndarray, defined: np.ndarray, sha
         allowed = np.maximum(float(max_gap), share_by_class[top[a]] * np.maximum(long_side[a], long_side[rest]))
         out.extend((float(g), int(a), int(b)) for g, b, ok in zip(gaps, rest, gaps <= allowed) if ok)
     return sorted(out)
-
-
-def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: float = 0.05,
-                min_cover: float = 0.5, established: np.ndarray | None = None,
-                low: float | None = None, centred: float | None = None) -> list[tuple[float, int, int]]:
-    """Pairs of map objects (M boxes in view, top classes (M,)) in which a smaller object of another
-    class stands right under a larger one: its top within ``max_gap`` metres of the other's bottom,
-    its bottom lower, and at least ``min_cover`` of its footprint under the other's footprint grown
-    by ``margin`` per side. [(gap, a, b)], a < b, closest first; none when ``max_gap`` is None.
-
-    It is the larger object's own lower part under another label: YOLOv8n calls a monitor's foot
-    "mouse" (tum-fr1-rpy: the front monitor's foot, 33 detections, 4.5 cm under the screen's box).
-    Separate things rest on what is under them (a cup on a table is above it); a low thing in the
-    hand's breadth under a monitor's screen is its foot (but see ``low``).
-
-    ``established`` (M,) bool: made in an earlier session; when given, such an object is never
-    another's part. The map held it as a thing of its own through a whole session: on revisits of
-    tum-fr1-rpy a cup of 67 detections went into a new box of the monitor behind it, and a book
-    flat on the desk under a mouse's bottom (the two side by side) into the mouse.
-
-    ``low``: when given, the smaller one is at most this share of the larger one's height. A stand
-    is low (a monitor's foot plate; its neck hides behind the screen's box), a thing beside the
-    screen is not: on the level tum-fr1-rpy map a mug 0.13-0.17 m tall in front of one end of a
-    monitor had its top within 5 cm of the screen's bottom and went into it three times in a pass,
-    while the feet the detector calls "mouse" are 0.05-0.12 m under screens of 0.37-0.38 m.
-
-    ``centred``: when given, also a smaller object at most half the larger one's height, its top
-    in the larger one's lower half (and not below its bottom by more than ``max_gap``), whose
-    footprint's centre lies within this share of the larger one's length and of its width from the
-    larger one's centre (in the larger one's frame), whatever ``low`` says: a foot stands under the
-    middle of its screen, inside the screen's box when that box reaches down to the desk (on
-    tum-fr1-rpy a front monitor's foot 0.15-0.17 m tall, 1-5 % of the screen's length and 2-22 % of
-    its depth from its middle, its top 0.30-0.32 of the screen's height inside it), while a mug
-    beside the screen's end stood 32-37 % of its length and 45-47 % of its depth from it.
-    """
-    m = len(boxes)
-    if max_gap is None or m < 2:
-        return []
-    z0 = boxes.center[:, 2] - boxes.size[:, 2] / 2
-    z1 = boxes.center[:, 2] + boxes.size[:, 2] / 2
-    vol = np.prod(boxes.size, axis=1)
-    area = boxes.size[:, 0] * boxes.size[:, 1]
-    grown = Boxes(boxes.center, boxes.yaw, boxes.size + np.array([2 * margin, 2 * margin, 0.0]),
-                  np.zeros((m, 8), bool))
-    height = boxes.size[:, 2]
-    gap = np.abs(z0[None, :] - z1[:, None])  # [a, b]: a's top to b's bottom
-    under = gap <= max_gap
-    if low is not None:
-        under &= height[:, None] <= low * height[None, :]
-    if centred is not None:
-        under |= (height[:, None] <= 0.5 * height[None, :]) & (z1[:, None] >= z0[None, :] - max_gap) \
-            & (z1[:, None] <= z0[None, :] + 0.5 * height[None, :]) & centred_under(boxes, centred)
-    ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & under & (z0[:, None] < z0[None, :])
-    if established is not None:
-        ok &= ~np.asarray(established, dtype=bool)[:, None]
-    out = []
-    for a, b in zip(*np.nonzero(ok)):
-        cover = convex_intersection_area(boxes.corners[a:a + 1, :4, :2], grown.corners[b:b + 1, :4, :2])[0] / area[a]
-        if cover >= min_cover:
-            out.append((float(gap[a, b]), min(int(a), int(b)), max(int(a), int(b))))
-    return sorted(out)
-
-
-def centred_under(boxes: Boxes, share: float) -> np.ndarray:
-    """(M, M) bool, [a, b]: box a's XY centre lies within ``share`` of box b's length along b's own
-    x axis and within ``share`` of its width along b's y axis from b's centre (b's yaw)."""
-    d = boxes.center[:, None, :2] - boxes.center[None, :, :2]  # [a, b]: a's centre from b's
-    c, s = np.cos(boxes.yaw)[None, :], np.sin(boxes.yaw)[None, :]
-    along, across = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
-    return (np.abs(along) <= share * boxes.size[None, :, 0]) & (np.abs(across) <= share * boxes.size[None, :, 1])
 
 
 def enclosed_part(a, b) -> bool:

@@ -11,14 +11,13 @@ import numpy as np
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, top_class
 from ltc_cli.pipeline.association import match_reach
-from ltc_cli.pipeline.deduplication import (
-    PIECES_KEY, enclosed_part, greedy_merges, label_survivor, merge_pairs, stand_pairs,
-)
+from ltc_cli.pipeline.deduplication import PIECES_KEY, enclosed_part, greedy_merges, label_survivor, merge_pairs
 from ltc_cli.pipeline.frame_modeling import not_whole
 from ltc_cli.pipeline.integration import (
     confirmed_side, enclosing_box, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
 from ltc_cli.pipeline.maintenance import tentative, union_span
+from ltc_cli.pipeline.stands import stand_pairs
 
 
 class InstanceMerging:
