@@ -32,6 +32,22 @@ SIZE = [[0.1, 0.54, 0.35], [0.14, 0.24, 0.04], [0.1, 0.1, 0.04], [0.1, 0.1, 0.10
 TOP = np.array([TV, MOUSE, CUP, CUP, TABLE, CUP])
 
 
+def class_vector(cls: int) -> np.ndarray:
+    """0.9 on ``cls``, the rest spread over the other classes, nothing on ``other``."""
+    v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
+    v[cls], v[-1] = 0.9, 0.0
+    return v
+
+
+def empty_frame(smap, cfg, session: int):
+    """A mapper over ``smap`` (vertex metric, static policy: no non-detections) after one frame with no
+    detections in which the scene's objects are in view: (mapper, the frame's result)."""
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=session)
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    return mapper, mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+
+
 def boxes(rows=None) -> Boxes:
     rows = list(range(len(CENTER))) if rows is None else rows
     return Boxes(np.array(CENTER, float)[rows], np.zeros(len(rows)), np.array(SIZE, float)[rows],
@@ -153,16 +169,12 @@ def test_on_a_revisit_two_established_monitors_stay_two(apart):
     cfg["association"]["established_apart"] = apart
     cfg["association"]["defined_apart_detections"] = None  # this test is of established_apart alone
     smap = SemanticMap.new(CLASSES)
-    v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
-    v[TV], v[-1] = 0.9, 0.0
+    v = class_vector(TV)
     for y in (-0.24, 0.24):
         smap.objects.append(center=np.array([2.2, y, 1.2]), yaw=0.0, size=np.array([0.1, 0.5, 0.4]),
                             visible=np.ones(8, bool), defined=True, scores=v, n_det=30, status=ACTIVE,
                             first_session=0, last_session=0)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=1)
-    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
-    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    mapper, res = empty_frame(smap, cfg, session=1)
     assert list(mapper.map.objects.status[:2]) == ([ACTIVE, ACTIVE] if apart else [ACTIVE, MERGED])
     assert res.merged == (0 if apart else 1)
 
@@ -180,15 +192,11 @@ def test_the_foot_joins_the_screen_which_keeps_its_box_label_and_id(gap):
     smap = SemanticMap.new(CLASSES)
     vectors = []
     for i, n_det in ((0, 40), (1, 60)):
-        v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
-        v[TOP[i]], v[-1] = 0.9, 0.0
+        v = class_vector(TOP[i])
         vectors.append(v)
         smap.objects.append(center=np.array(CENTER[i], float), yaw=0.0, size=np.array(SIZE[i], float),
                             visible=np.ones(8, bool), defined=True, scores=v, n_det=n_det, status=ACTIVE)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
-    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
-    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    mapper, res = empty_frame(smap, cfg, session=0)
     t = mapper.map.objects
     if gap is None:
         assert res.merged == 0 and list(t.status[:2]) == [ACTIVE, ACTIVE]
@@ -303,14 +311,10 @@ def test_through_the_mapper_the_centred_foot_joins_the_screen(centred):
     cfg["association"]["stand_centred"] = centred
     smap = SemanticMap.new(CLASSES)
     for i, (cls, n_det) in enumerate(((TV, 40), (MOUSE, 60))):
-        v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
-        v[cls], v[-1] = 0.9, 0.0
+        v = class_vector(cls)
         smap.objects.append(center=np.array(FOOT_CENTER[i], float), yaw=0.0, size=np.array(FOOT_SIZE[i], float),
                             visible=np.ones(8, bool), defined=True, scores=v, n_det=n_det, status=ACTIVE)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
-    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
-    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    mapper, res = empty_frame(smap, cfg, session=0)
     t = mapper.map.objects
     assert list(t.status[:2]) == ([ACTIVE, ACTIVE] if centred is None else [ACTIVE, MERGED])
     assert res.merged == (0 if centred is None else 1)
@@ -348,15 +352,11 @@ def test_through_the_mapper_two_well_seen_monitors_of_one_session_stay_two(n_det
         cfg["association"]["defined_apart_detections"] = None
         n_det = (30, 12)
     smap = SemanticMap.new(CLASSES)
-    v = np.full(len(CLASSES) + 1, 0.1 / (len(CLASSES) - 1))
-    v[TV], v[-1] = 0.9, 0.0
+    v = class_vector(TV)
     for y, n in zip((-0.24, 0.24), n_det):
         smap.objects.append(center=np.array([2.2, y, 1.2]), yaw=0.0, size=np.array([0.1, 0.5, 0.4]),
                             visible=np.ones(8, bool), defined=True, scores=v, n_det=n, status=ACTIVE,
                             first_session=0, last_session=0)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
-    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
-    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    mapper, res = empty_frame(smap, cfg, session=0)
     assert list(mapper.map.objects.status[:2]) == ([ACTIVE, ACTIVE] if apart else [ACTIVE, MERGED])
     assert res.merged == (0 if apart else 1)
