@@ -1,5 +1,6 @@
 """The real shared recordings with the real shared detector: objects per class against the truth
-counted in their READMEs, ids kept on ``--revisit``, a reversed-order pass, frames per second.
+counted in their READMEs, ids kept on ``--revisit``, a reversed-order pass, frames per second, and
+on tum-fr1-rpy the places measured by hand that each pass's map holds right (tests/real_truth.py).
 
     python benchmarks/bench_real.py [--model ../shared/models/yolov8n-seg_fp32.onnx]
                                     [--recordings tum-fr1-rpy,dining-room] [--set key=value]...
@@ -40,21 +41,19 @@ from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
+from tests.real_truth import COUNTS, TUM_FR1_RPY, check  # noqa: E402
 from tests.replay import Reordered, Replay  # noqa: E402
 
 # ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
 SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
 
-# What is in view, from the recordings' READMEs: (fewest, most) per class; classes not listed
-# should not be in the map at all (person never). The READMEs count by eye: "a few" books. One
-# departure: tum-fr1-rpy's README counts three monitors; the frames show a fourth right behind the
-# front one, its top edge above it in frames 56-230 (docs/decisions.md, issue 9 tenth and twelfth
-# rounds), so up to 4 tvs are right.
-TRUTH = {
-    "tum-fr1-rpy": {"tv": (2, 4), "keyboard": (1, 2), "mouse": (1, 2), "cup": (1, 2), "book": (0, 4),
-                    "chair": (1, 2), "laptop": (0, 0), "person": (0, 0), "dining table": (0, 2)},
-    "dining-room": {"dining table": (1, 1), "chair": (1, 9), "couch": (1, 1), "person": (0, 0)},
-}
+# What is in view (tests/real_truth.py, from the recordings' READMEs): (fewest, most) per class;
+# classes not listed should not be in the map at all (person never). The READMEs count by eye: "a
+# few" books. tum-fr1-rpy's README counts three monitors; the frames show a fourth right behind the
+# front one (docs/decisions.md, issue 9 tenth and twelfth rounds), so up to 4 tvs are right. Its
+# places measured by hand (tests/real_truth.py) say where a map is right, not only how many.
+TRUTH = COUNTS
+LANDMARKS = {"tum-fr1-rpy": TUM_FR1_RPY}
 
 
 class BenchPlugin:
@@ -127,6 +126,20 @@ def verdict(name: str, counts: Counter) -> str:
            if not lo <= counts.get(c, 0) <= hi]
     extra = sorted(c for c in counts if c not in truth)
     return "; ".join(bad + ([f"not in the README: {', '.join(extra)}"] if extra else [])) or "all as counted"
+
+
+def landmarks_line(name: str, maps: list) -> list[str]:
+    """Per pass (label, map path): how many of the recording's hand-measured places it holds right,
+    and what it has at the others (tests/real_truth.py)."""
+    if name not in LANDMARKS:
+        return []
+    out, met, total = [], 0, 0
+    for label, path in maps:
+        res = check(load_map(path), LANDMARKS[name])
+        met, total = met + sum(ok for _, ok, _ in res), total + len(res)
+        wrong = "; ".join(f"{lm.name}: {where}" for lm, ok, where in res if not ok)
+        out.append(f"    {label}: {sum(ok for _, ok, _ in res)} of {len(res)}" + (f" ({wrong})" if wrong else ""))
+    return [f"  hand-measured places (tests/real_truth.py) held right: {met} of {total}"] + out
 
 
 def main():
@@ -232,6 +245,13 @@ def main():
                 for line in new_objects(m_part, ids_part2 - ids_part1, tmp / f"{name}-s1.h5"):
                     print(f"    new: {line}")
             print(f"  every third frame: {sum(third.values())} objects ({verdict(name, third)})")
+            passes = [("session 1", tmp / f"{name}-s1.h5"), ("revisit", m), ("reversed", m_rev),
+                      ("revisit in reverse order", m_back), ("every other frame, twice", m_half),
+                      ("even frames, then the odd ones", m_odd), ("every third frame", m_third),
+                      *((f"{a.replace('-', ' ')}, then the {b.replace('-', ' ')}", tmp / f"{name}-{a}.h5")
+                        for a, b in (("first-half", "second-half"), ("second-half", "first-half")))]
+            for line in landmarks_line(name, passes):
+                print(line)
 
 
 if __name__ == "__main__":

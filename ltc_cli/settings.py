@@ -55,6 +55,7 @@ class AssociationSettings(TypedDict):
     threshold_same_class: float
     threshold_other_class: float
     other_class_scale: Optional[float]
+    same_class_scale: Optional[float]
     other_class_height_ratio: Optional[float]
     other_class_min_overlap: Optional[float]
     min_visible_pairs: int

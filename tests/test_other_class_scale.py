@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.pipeline.association import other_class_caps, thresholds_for
+from ltc_cli.pipeline.association import size_caps, thresholds_for
 from ltc_cli.pipeline.deduplication import duplicate_pairs
 
 
@@ -15,9 +15,9 @@ def test_caps_by_hand():
     # 0.75 table 0.9631; the cap is scale times the larger of the pair.
     det = np.array([0.2, 0.1, 0.1])
     cands = np.array([[0.1, 0.1, 0.1], [1.6, 0.9, 0.75]])
-    caps = other_class_caps(det, cands, 1.25)
+    caps = size_caps(det, cands, 1.25)
     np.testing.assert_allclose(caps, [1.25 * np.sqrt(0.06) / 2, 1.25 * np.sqrt(1.6**2 + 0.81 + 0.5625) / 2])
-    assert other_class_caps(det, cands, None) is None
+    assert size_caps(det, cands, None) is None
     # Same class keeps its 0.4; other class is min(0.25, cap): 0.153 for the cup, 0.25 for the table.
     thr = thresholds_for(0, np.array([1, 1, 0]), 0.4, 0.25, np.array([caps[0], caps[1], 0.01]))
     np.testing.assert_allclose(thr, [1.25 * np.sqrt(0.06) / 2, 0.25, 0.4])

@@ -28,7 +28,8 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
                     labels_apart: bool = False, max_width: np.ndarray | None = None,
                     scores: np.ndarray | None = None,
                     min_evidence: float | None = None,
-                    well_seen: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                    well_seen: np.ndarray | None = None,
+                    same_scale: float | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
@@ -54,6 +55,10 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     detected a dozen times and more, sharing no ground, are two screens (tum-fr1-rpy: eq. 2 over
     their 8 vertices 0.34 m, under the 0.4 of one class, and the averaged box stood between the
     two monitors, on neither).
+
+    ``other_scale``, ``same_scale``: the thresholds of two classes and of one are at most this many
+    times the larger half diagonal of the pair (:func:`~ltc_cli.pipeline.association.size_caps`;
+    None: the fixed thresholds).
 
     ``max_width`` (C+1,): per class, the widest footprint that joins a partial object of another
     class by containment, inside or around it (:func:`~ltc_cli.pipeline.association.too_wide`;
@@ -89,7 +94,7 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             part = np.ones(m, dtype=bool) if defined is None else ~np.asarray(defined, dtype=bool)
             blocked = (wide[:, None] & part[None, :]) | (wide[None, :] & part[:, None])
             contained &= ~(blocked & (top[:, None] != top[None, :]))
-    halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the other-class caps
+    halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the thresholds' caps
     pairs = []
     for a in range(m - 1):
         rest = np.arange(a + 1, m)
@@ -98,8 +103,9 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             if rest.size == 0:
                 continue
         dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
-        caps = None if other_scale is None else other_scale * np.maximum(halves[a], halves[rest])  # other_class_caps
-        close = dist <= thresholds_for(int(top[a]), top[rest], same, other, caps)
+        larger = np.maximum(halves[a], halves[rest])  # as size_caps
+        caps = [None if scale is None else scale * larger for scale in (other_scale, same_scale)]
+        close = dist <= thresholds_for(int(top[a]), top[rest], same, other, *caps)
         if min_overlap is not None and close.any():
             # eq. 2 over the vertices visible in both: a partial box's visible corners can sit on
             # its neighbour's (two monitors edge to edge); one object's pieces share their ground.
@@ -316,7 +322,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
                             a_cfg["other_class_scale"], a_cfg["merge_min_overlap"], defined, established,
                             a_cfg["labels_apart"], max_width, scores, a_cfg["merge_other_class_evidence"],
-                            well_seen)
+                            well_seen, a_cfg["same_class_scale"])
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

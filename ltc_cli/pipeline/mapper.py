@@ -19,7 +19,7 @@ from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
     adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps, half_diagonals,
-    match_reach, nearest_under_threshold, other_class_caps, similar_volume, thresholds_for, unlike_heights,
+    match_reach, nearest_under_threshold, similar_volume, size_caps, thresholds_for, unlike_heights,
     within_reach,
 )
 from ltc_cli.pipeline.class_settings import ClassSettings
@@ -232,7 +232,8 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         cand_classes, cand = top_class(t.scores[rows]), t.boxes(rows)
         dist = self.metric.distance(det, cand)
         thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
-                             other_class_caps(det.size[0], t.size[rows], a_cfg["other_class_scale"]))
+                             size_caps(det.size[0], t.size[rows], a_cfg["other_class_scale"]),
+                             size_caps(det.size[0], t.size[rows], a_cfg["same_class_scale"]))
         other = cand_classes != det_class
         unlike = other & unlike_heights(
             det.center[0, 2], det.size[0, 2], det_defined, t.center[rows, 2], t.size[rows, 2], t.defined[rows],

@@ -86,6 +86,13 @@ class InstanceMerging:
         is the smaller (:func:`enclosed_part`)."""
         t, i_cfg = self.map.objects, self.cfg["integration"]
         b_old, b_new = t.box(older), t.box(newer)
+        # defined_min_width holds for the merged boxes as for the pairs: a Defined box shorter than
+        # any whole object of its class (two partial views' union whose corners snapped together)
+        # is a part, and does not replace the partial box of the whole (a 0.24 m piece of a 0.5 m
+        # monitor did, on tum-fr1-rpy).
+        for row, b in ((older, b_old), (newer, b_new)):
+            whole = self.per_class.whole_width[top_class(t.scores[row])]
+            b.defined = bool(not_whole(b.defined, b.size[:2].max(), whole))
         w_old, w_new = self._merge_weights(older, newer)
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
