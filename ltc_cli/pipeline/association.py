@@ -92,9 +92,8 @@ def size_caps(det_size: np.ndarray, cand_size: np.ndarray, scale: float | None) 
     One object gives boxes at one place, apart by less than its own size, whatever their labels;
     two small things side by side are apart by about theirs, within eq. 2's fixed thresholds (0.4 m
     for one class, 0.25 m for two), which suit furniture. Other classes: a mug and a monitor's foot
-    0.2 m apart on tum-fr1-rpy. One class: the mouse beside its keyboard took every detection of the
-    monitor's foot 0.2 m away that the detector also calls "mouse", and the map had one "mouse", on
-    the foot, and none where the mouse lies.
+    0.2 m apart on tum-fr1-rpy. One class: the "mouse" the detector saw on a monitor's foot took
+    every detection of the mouse 0.2 m beside it, and the map had no mouse where the mouse lies.
     """
     if scale is None:
         return None
