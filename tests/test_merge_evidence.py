@@ -26,6 +26,9 @@ def test_shared_evidence_by_hand():
                                                           [True, False, True]]
     assert shared_evidence(scores, top, 0.15)[0, 2] and shared_evidence(scores, top, 0.15)[2, 0]
     assert not shared_evidence(scores, top, 0.25)[0, 2]
+    # Each giving the other's: the chair and the couch at 0.1 (0.2 and 0.12), not at 0.15.
+    assert shared_evidence(scores, top, 0.1, both=True)[0, 2]
+    assert not shared_evidence(scores, top, 0.15, both=True)[0, 2]
 
 
 @pytest.mark.parametrize("chair_vector, overrides, merge", [
@@ -57,18 +60,21 @@ def test_a_chair_in_a_partial_table_box_joins_it_only_by_evidence(chair_vector, 
 TV, MOUSE = 0, 1  # classes tv, mouse; other last
 
 
-@pytest.mark.parametrize("foot_vector, first_session, overrides, merge", [
+@pytest.mark.parametrize("tv_vector, foot_vector, first_session, overrides, merge", [
     # Both made in session 0, seen again in session 1, neither vector gives the other's class.
-    ([0.05, 0.8, 0.15], [0, 0], [], False),
-    # ... the foot's vector gives tv 0.15 (>= 0.1): one thing under two labels, it merges.
-    ([0.15, 0.7, 0.15], [0, 0], [], True),
+    ([0.82, 0.0, 0.18], [0.05, 0.8, 0.15], [0, 0], [], False),
+    # ... the foot's vector gives tv 0.15 (>= 0.1), the tv's mouse nothing: still two (thirtieth
+    # round: a mouse whose vector gave keyboard 0.19 went into the keyboard beside it).
+    ([0.82, 0.0, 0.18], [0.15, 0.7, 0.15], [0, 0], [], False),
+    # ... and the tv's gives mouse 0.12: one thing under two labels, each carrying both; it merges.
+    ([0.75, 0.12, 0.13], [0.15, 0.7, 0.15], [0, 0], [], True),
     # ... both made in this session: eq. 2 alone, as before (one object's two labels in one pass).
-    ([0.05, 0.8, 0.15], [1, 1], [], True),
+    ([0.82, 0.0, 0.18], [0.05, 0.8, 0.15], [1, 1], [], True),
     # ... the rule off.
-    ([0.05, 0.8, 0.15], [0, 0], ["association.merge_other_class_evidence=null"], True),
+    ([0.82, 0.0, 0.18], [0.05, 0.8, 0.15], [0, 0], ["association.merge_other_class_evidence=null"], True),
 ])
 def test_two_established_objects_of_other_classes_merge_by_eq2_only_with_shared_evidence(
-        foot_vector, first_session, overrides, merge):
+        tv_vector, foot_vector, first_session, overrides, merge):
     """A Defined 0.2 x 0.3 x 0.3 "tv" at (0, 0, 1.0) and the Defined 0.16 x 0.24 x 0.14 "mouse" of
     its foot at (0.06, 0.1, 0.8) (tum-fr1-rpy's second monitor and its foot, both of session 0,
     merged in session 1 and the monitor became "mouse"). Eq. 2 over the 8 vertices, worked out
@@ -81,7 +87,7 @@ def test_two_established_objects_of_other_classes_merge_by_eq2_only_with_shared_
     a_cfg = cfg["association"]
     boxes = Boxes(np.array([[0.0, 0.0, 1.0], [0.06, 0.10, 0.8]]), np.zeros(2),
                   np.array([[0.2, 0.3, 0.3], [0.16, 0.24, 0.14]]), np.ones((2, 8), bool))
-    scores = np.array([[0.82, 0.0, 0.18], foot_vector])
+    scores = np.array([tv_vector, foot_vector])
     metric = plugins.get("metrics", "vertex").factory(a_cfg)
     pairs = merge_pairs(boxes, np.array([TV, MOUSE]), metric.distance, a_cfg, None, np.array([True, True]),
                         np.array(first_session), 1, scores)
