@@ -231,9 +231,10 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
                 return -1, False
         cand_classes, cand = top_class(t.scores[rows]), t.boxes(rows)
         dist = self.metric.distance(det, cand)
+        larger = size_caps(det.size[0], t.size[rows], 1.0)  # the larger half diagonals, once for both caps
+        caps = [None if a_cfg[k] is None else a_cfg[k] * larger for k in ("other_class_scale", "same_class_scale")]
         thr = thresholds_for(det_class, cand_classes, a_cfg["threshold_same_class"], a_cfg["threshold_other_class"],
-                             size_caps(det.size[0], t.size[rows], a_cfg["other_class_scale"]),
-                             size_caps(det.size[0], t.size[rows], a_cfg["same_class_scale"]))
+                             *caps)
         other = cand_classes != det_class
         unlike = other & unlike_heights(
             det.center[0, 2], det.size[0, 2], det_defined, t.center[rows, 2], t.size[rows, 2], t.defined[rows],
