@@ -64,6 +64,7 @@ class AssociationSettings(TypedDict):
     other_class_volume_ratio: Optional[float]
     partial_adjoin_gap: Optional[float]
     partial_adjoin_share: Optional[dict[str, float]]
+    adjoin_same_frame: bool
     merge_other_class_iou: Optional[float]
     merge_adjoining: bool
     merge_partial_defined_gap: Optional[float]
@@ -77,6 +78,7 @@ class AssociationSettings(TypedDict):
     stand_margin: float
     stand_low: Optional[float]
     stand_centred: Optional[float]
+    stand_within: Optional[float]
     part_label_share: Optional[float]
     container_max_width: Optional[dict[str, float]]
     merge_containment: Optional[float]

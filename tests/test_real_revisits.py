@@ -187,6 +187,22 @@ def test_one_session_maps_every_hand_measured_place_and_the_monitors_as_two(sess
     assert nearest[0] != nearest[1]
 
 
+@pytest.mark.parametrize("reader", ["reversed", "half"])
+def test_read_backwards_or_at_half_rate_every_hand_measured_place_holds(session, tmp_path, reader):
+    """One session read backwards, or every other frame: a box of its class within 0.05 m of each
+    place measured by hand, and no "mouse" on either monitor's foot.
+
+    Before ``association.adjoin_same_frame`` (false) the white mouse and, 3 cm beside it in the same
+    image, the second monitor's foot called "mouse" made one 0.36 m "mouse" over both; before
+    ``association.stand_within`` (0.5) the front monitor's box took the white mouse in front of it as
+    its foot, and the second monitor's foot, standing out in front of its screen's box, stayed a
+    "mouse" (docs/decisions.md, thirty-first round)."""
+    m = tmp_path / "map.h5"
+    session(reader, m)
+    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
+    assert wrong == []
+
+
 def test_a_third_of_the_frame_rate_maps_what_is_in_view(session, tmp_path):
     """Every third frame (a detector running at 10 Hz): everything as the README counts, the mug
     too. Before ``association.labels_apart`` the whole mug and a whole "mouse" 26 cm from it merged

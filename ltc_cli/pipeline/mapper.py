@@ -149,8 +149,9 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
             ta = clock()
             s_det = scores[int(modeled.source[k])]
             det_box = modeled.boxes.row(k, bool(modeled.defined[k]))
-            j, partial = self._associate(modeled.boxes.take(slice(k, k + 1)), int(top_class(s_det)),
-                                         np.array(in_view_rows, dtype=np.int64), det_box.defined)
+            rows = np.array(in_view_rows, dtype=np.int64)
+            j, partial = self._associate(modeled.boxes.take(slice(k, k + 1)), int(top_class(s_det)), rows,
+                                         det_box.defined, np.isin(rows, list(matched_rows)))
             if partial:
                 det_box.defined = False
             t_assoc += clock() - ta
@@ -215,18 +216,22 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
             self._remove(row, frame_index, frame_key, picture_detail(t.n_flat[row], t.n_det[row]))
         return len(gone)
 
-    def _associate(self, det: Boxes, det_class: int, rows: np.ndarray, det_defined: bool = True) -> tuple[int, bool]:
-        """(row or -1, matched by containment) of one detection among candidate rows (stage 2)."""
+    def _associate(self, det: Boxes, det_class: int, rows: np.ndarray, det_defined: bool = True,
+                   this_frame: np.ndarray | None = None) -> tuple[int, bool]:
+        """(row or -1, matched by containment) of one detection among candidate rows (stage 2).
+        this_frame: (M,) bool, the rows an earlier detection of this frame already took."""
         if rows.size == 0:
             return -1, False
         a_cfg, t = self.cfg["association"], self.map.objects
         reach = match_reach(self.metric, a_cfg)
         share = float(self.per_class.adjoin_share[det_class]) if a_cfg["partial_adjoin_gap"] is not None else 0.0
+        this_frame = np.zeros(rows.shape, dtype=bool) if this_frame is None else this_frame
         if reach is not None and rows.size > 8:  # only those that can match decide (the same decision)
             # An adjoining gap of share x the longer side is within 2 share x the half diagonals.
             grow = 1.0 + 2.0 * share
-            rows = rows[within_reach(det.center[0], grow * half_diagonals(det.size)[0], t.center[rows],
-                                     grow * half_diagonals(t.size[rows]), reach)]
+            near = within_reach(det.center[0], grow * half_diagonals(det.size)[0], t.center[rows],
+                                grow * half_diagonals(t.size[rows]), reach)
+            rows, this_frame = rows[near], this_frame[near]
             if rows.size == 0:
                 return -1, False
         cand_classes, cand = top_class(t.scores[rows]), t.boxes(rows)
@@ -251,7 +256,8 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
                                     a_cfg["containment_other_class"], comparable)
         if best < 0 and not det_defined:
             long_sides = np.maximum(det.size[0, :2].max(), cand.size[:, :2].max(axis=1))
-            best = adjoining_partial(footprint_gaps(det, cand), cand_classes == det_class, ~t.defined[rows],
+            pieces = ~t.defined[rows] if a_cfg["adjoin_same_frame"] else ~t.defined[rows] & ~this_frame
+            best = adjoining_partial(footprint_gaps(det, cand), cand_classes == det_class, pieces,
                                      a_cfg["partial_adjoin_gap"], long_sides, share)
         return (int(rows[best]), True) if best >= 0 else (-1, False)
 

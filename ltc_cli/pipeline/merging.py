@@ -59,7 +59,7 @@ class InstanceMerging:
         vol = np.prod(t.size[rows], axis=1)
         pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"],
                             established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None,
-                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"])
+                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"])
         merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
         for keep, drop in merges:
             keep, drop = int(rows[keep]), int(rows[drop])

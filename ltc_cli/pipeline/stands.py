@@ -14,7 +14,8 @@ from ltc_cli.geometry.polygons import convex_intersection_area
 
 def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: float = 0.05,
                 min_cover: float = 0.5, established: np.ndarray | None = None,
-                low: float | None = None, centred: float | None = None) -> list[tuple[float, int, int]]:
+                low: float | None = None, centred: float | None = None,
+                within: float | None = None) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view, top classes (M,)) in which a smaller object of another
     class stands right under a larger one: its top within ``max_gap`` metres of the other's bottom,
     its bottom lower, and at least ``min_cover`` of its footprint under the other's footprint grown
@@ -44,6 +45,15 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     tum-fr1-rpy a front monitor's foot 0.15-0.17 m tall, 1-5 % of the screen's length and 2-22 % of
     its depth from its middle, its top 0.30-0.32 of the screen's height inside it), while a mug
     beside the screen's end stood 32-37 % of its length and 45-47 % of its depth from it.
+
+    ``within``: when given, the smaller one's footprint centre also lies within this share of the
+    larger one's length and width from its centre (0.5: inside its footprint, not only under the
+    grown one). A foot stands under its screen; a mouse or a keyboard in front of a screen whose box
+    grew deep does not: on tum-fr1-rpy read backwards a 0.36-0.38 m deep front monitor box took
+    the keyboard in front of it (centres 0.66-0.78 of the box's depth from its middle) and the
+    white mouse (0.49-0.87) as its feet, while the feet stood 0.01-0.47 of it from the middle.
+    For ``centred`` it is the share of the larger one's shorter side (``centred`` stays that of the
+    longer): the second monitor's foot stood 0.23-0.57 of its screen box's depth from its middle.
     """
     m = len(boxes)
     if max_gap is None or m < 2:
@@ -59,9 +69,11 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     under = gap <= max_gap
     if low is not None:
         under &= height[:, None] <= low * height[None, :]
+    if within is not None:
+        under &= centred_under(boxes, within)
     if centred is not None:
         under |= (height[:, None] <= 0.5 * height[None, :]) & (z1[:, None] >= z0[None, :] - max_gap) \
-            & (z1[:, None] <= z0[None, :] + 0.5 * height[None, :]) & centred_under(boxes, centred)
+            & (z1[:, None] <= z0[None, :] + 0.5 * height[None, :]) & centred_under(boxes, centred, within)
     ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & under & (z0[:, None] < z0[None, :])
     if established is not None:
         ok &= ~np.asarray(established, dtype=bool)[:, None]
@@ -73,10 +85,18 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     return sorted(out)
 
 
-def centred_under(boxes: Boxes, share: float) -> np.ndarray:
+def centred_under(boxes: Boxes, share: float, across: float | None = None) -> np.ndarray:
     """(M, M) bool, [a, b]: box a's XY centre lies within ``share`` of box b's length along b's own
-    x axis and within ``share`` of its width along b's y axis from b's centre (b's yaw)."""
+    x axis and within ``share`` of its width along b's y axis from b's centre (b's yaw). With
+    ``across``: within ``share`` of b's longer footprint side along it, and within ``across`` of
+    its shorter side along that one (a foot under the middle of its screen's length may stand out
+    in front of the screen)."""
     d = boxes.center[:, None, :2] - boxes.center[None, :, :2]  # [a, b]: a's centre from b's
     c, s = np.cos(boxes.yaw)[None, :], np.sin(boxes.yaw)[None, :]
-    along, across = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
-    return (np.abs(along) <= share * boxes.size[None, :, 0]) & (np.abs(across) <= share * boxes.size[None, :, 1])
+    along, side = np.abs(d[..., 0] * c + d[..., 1] * s), np.abs(-d[..., 0] * s + d[..., 1] * c)
+    length, width = boxes.size[None, :, 0], boxes.size[None, :, 1]
+    if across is None:
+        return (along <= share * length) & (side <= share * width)
+    x_long = length >= width
+    on_long, on_short = np.where(x_long, along, side), np.where(x_long, side, along)
+    return (on_long <= share * np.maximum(length, width)) & (on_short <= across * np.minimum(length, width))
