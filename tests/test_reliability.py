@@ -323,8 +323,9 @@ def test_three_thousand_instances_in_one_frame(tmp_path):
     rec = many_instances(tmp_path / "rec", 3000)
     det_file = rec / "detections" / "000000.json"
     m = tmp_path / "all.h5"
-    # One frame is one view: the distinct-views confirmation would leave nothing to look at.
-    one_view = ("--set", "maintenance.min_detection_views=null")
+    # One frame is one view, and each square one detection (two masks of one image are two
+    # instances: association.adjoin_same_frame): the confirmation would leave nothing to look at.
+    one_view = ("--set", "maintenance.min_detection_views=null", "--set", "maintenance.min_detections=1")
     r = run("ingest", rec, "--map", m, "--set", "modeling.max_detections=5000", *one_view)
     assert r.exit_code == 0 and r.stderr.strip() == "", r.output
     assert "1 frame ingested" in r.stdout
