@@ -86,17 +86,15 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
 
 
 def centred_under(boxes: Boxes, share: float, across: float | None = None) -> np.ndarray:
-    """(M, M) bool, [a, b]: box a's XY centre lies within ``share`` of box b's length along b's own
-    x axis and within ``share`` of its width along b's y axis from b's centre (b's yaw). With
-    ``across``: within ``share`` of b's longer footprint side along it, and within ``across`` of
-    its shorter side along that one (a foot under the middle of its screen's length may stand out
+    """(M, M) bool, [a, b]: box a's XY centre lies within ``share`` of box b's longer footprint
+    side along it and within ``across`` (default ``share``) of its shorter side along that one,
+    from b's centre in b's own axes (a foot under the middle of its screen's length may stand out
     in front of the screen)."""
+    across = share if across is None else across
     d = boxes.center[:, None, :2] - boxes.center[None, :, :2]  # [a, b]: a's centre from b's
     c, s = np.cos(boxes.yaw)[None, :], np.sin(boxes.yaw)[None, :]
     along, side = np.abs(d[..., 0] * c + d[..., 1] * s), np.abs(-d[..., 0] * s + d[..., 1] * c)
     length, width = boxes.size[None, :, 0], boxes.size[None, :, 1]
-    if across is None:
-        return (along <= share * length) & (side <= share * width)
     x_long = length >= width
     on_long, on_short = np.where(x_long, along, side), np.where(x_long, side, along)
     return (on_long <= share * np.maximum(length, width)) & (on_short <= across * np.minimum(length, width))
