@@ -13,7 +13,10 @@ half the frame rate (every other frame), the even frames' map revisited with the
 same route seen in other images, so the detector's word differs), the first half's map revisited
 with the second half and the other way round (a drive along part of the route, then along the
 rest: what both saw keeps its id, what only one saw stays), and one session at a third of the
-frame rate (a detector at 10 Hz).
+frame rate (a detector at 10 Hz). On tum-fr1-rpy, every pass's map is also held to pairs of
+different things of one class that must stay two boxes (``APART``), and seven more passes
+(``LATER_PASSES``: other frame rates, offsets and directions) first run after the rules were set
+on the ones above say how the map holds on passes it was not tuned on.
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -41,7 +44,7 @@ from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
-from tests.real_truth import COUNTS, TUM_FR1_RPY, check  # noqa: E402
+from tests.real_truth import APART, COUNTS, TUM_FR1_RPY, check, merged_pairs  # noqa: E402
 from tests.replay import Reordered, Replay  # noqa: E402
 
 # ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
@@ -69,6 +72,26 @@ class BenchPlugin:
         register("odd-frames", Reordered(step=2, start=1))
         register("first-half", Reordered(span=(0.0, 0.5)))
         register("second-half", Reordered(span=(0.5, 1.0)))
+        for reader, kwargs in {r: kw for sessions in LATER_PASSES.values() for r, kw in sessions}.items():
+            if reader != "every-other":  # registered above
+                register(reader, Reordered(**kwargs))
+
+
+# Passes first run in the thirty-second round, after every rule of the earlier rounds was set on
+# the passes above: how the map holds on routes and frame rates the rules were not tuned on.
+# {label: [(reader, Reordered options) per session]}
+LATER_PASSES = {
+    "every fourth frame": [("every-4th", {"step": 4})],
+    "every fourth frame from frame 2": [("every-4th-from-2", {"step": 4, "start": 2})],
+    "every fifth frame from frame 1": [("every-5th-from-1", {"step": 5, "start": 1})],
+    "every third frame from frame 1, backwards": [("back-3rd-from-1", {"reverse": True, "step": 3, "start": 1})],
+    "odd frames backwards, then the even ones": [("back-odd", {"reverse": True, "step": 2, "start": 1}),
+                                                 ("every-other", {"step": 2})],
+    "the first 70 %, then the last 70 % backwards": [("first-70", {"span": (0.0, 0.7)}),
+                                                      ("back-last-70", {"reverse": True, "span": (0.3, 1.0)})],
+    "every third frame from frame 2, then from frame 1": [("every-3rd-from-2", {"step": 3, "start": 2}),
+                                                          ("every-3rd-from-1", {"step": 3, "start": 1})],
+}
 
 
 def dining_room(tmp: Path) -> Path:
@@ -142,6 +165,38 @@ def landmarks_line(name: str, maps: list) -> list[str]:
     return [f"  hand-measured places (tests/real_truth.py) held right: {met} of {total}"] + out
 
 
+def apart_line(name: str, maps: list) -> list[str]:
+    """How many passes keep each pair of different things of one class (``APART``) in two boxes, and
+    which box holds both where one does."""
+    if name not in APART:
+        return []
+    bad = [(label, merged_pairs(load_map(path), APART[name])) for label, path in maps]
+    out = [f"  things apart (tests/real_truth.py APART): {len(maps) * len(APART[name]) - sum(len(b) for _, b in bad)} "
+           f"of {len(maps) * len(APART[name])} pairs in two boxes"]
+    return out + [f"    {label}: {a} and {b} in one box ({oid})" for label, pairs in bad for a, b, oid in pairs]
+
+
+def later_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None) -> list[tuple[str, Path]]:
+    """Run ``LATER_PASSES`` on one recording, print each pass's counts and kept ids; (label, map)."""
+    maps = []
+    print(f"  passes first run in the thirty-second round ({len(LATER_PASSES)}):")
+    for label, sessions in LATER_PASSES.items():
+        m = tmp / f"{name}-later-{len(maps)}.h5"
+        line, ids = [], None
+        for k, (reader, _) in enumerate(sessions):
+            ingest([path], m, load_config(None, sets), reader=reader, revisit=k > 0)
+            counts, now = census(m)
+            kept = "" if ids is None else f", ids kept {len(ids & now) / max(len(ids), 1):.0%}"
+            line.append(f"{sum(counts.values())} objects ({verdict(name, counts)}){kept}")
+            line += [f"lost {x}" for x in ([] if ids is None else lost_ids(m, ids - now))]
+            ids = now if ids is None else ids
+        print(f"    {label}: " + " -> ".join(line))
+        if keep:
+            shutil.copyfile(m, Path(keep) / f"{name}-later-{label.replace(' ', '-').replace('%', 'pc')}.h5")
+        maps.append((label, m))
+    return maps
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--model", default=str(SHARED / "models" / "yolov8n-seg_fp32.onnx"))
@@ -150,7 +205,7 @@ def main():
     ap.add_argument("--keep", metavar="DIR", help="write the maps here (NAME.h5 after the revisit, "
                     "NAME-session1.h5, NAME-reversed.h5, NAME-revisit-reversed.h5, NAME-every-other.h5, "
                     "NAME-every-third.h5, NAME-odd-frames.h5, NAME-first-half-then-second-half.h5, "
-                    "NAME-second-half-then-first-half.h5) "
+                    "NAME-second-half-then-first-half.h5, NAME-later-LABEL.h5) "
                     "to draw or query them")
     args = ap.parse_args()
     if not Path(args.model).is_file():
@@ -250,8 +305,12 @@ def main():
                       ("even frames, then the odd ones", m_odd), ("every third frame", m_third),
                       *((f"{a.replace('-', ' ')}, then the {b.replace('-', ' ')}", tmp / f"{name}-{a}.h5")
                         for a, b in (("first-half", "second-half"), ("second-half", "first-half")))]
-            for line in landmarks_line(name, passes):
+            for line in landmarks_line(name, passes) + apart_line(name, passes):
                 print(line)
+            if name in LANDMARKS:
+                later = later_passes(name, path, tmp, sets, args.keep)
+                for line in landmarks_line(name, later) + apart_line(name, later):
+                    print(line)
 
 
 if __name__ == "__main__":
