@@ -19,7 +19,7 @@ class Replay:
     def __init__(self, recording, options):
         self.inner = plugins.get("detectors", "onnx-yolo-seg").factory(recording, options)
         self.classes = self.inner.classes
-        self.identity = recording.identity
+        self.identity = (options.get("model"), recording.identity)  # one store for both shared models
 
     def detect(self, frame):
         key = (self.identity, frame.key)

@@ -54,6 +54,20 @@ def test_stage_1_calls_a_laptop_taller_than_any_laptop_a_tv(z_top, expected):
     assert CLASSES[int(top_class(out.scores[0]))] == "laptop"
 
 
+@pytest.mark.parametrize("z_top, expected", [(1.0, "tv"), (0.86, "mouse")])
+def test_stage_1_calls_a_mouse_taller_than_any_mouse_a_monitor_foot_with_the_defaults(z_top, expected):
+    """The defaults' bound (docs/decisions.md, thirty-second round): a 0.15 m wide face 1.2 m ahead
+    from z 0.8, detected as mouse 0.6. 0.20 m tall, over the 0.12 m bound, it is a monitor's foot
+    with its neck and comes out tv (YOLOv8n's feet on tum-fr1-rpy: 0.12-0.20 m); 0.06 m tall (a
+    mouse with its bleed is at most 0.10 m) it stays a mouse."""
+    cfg = defaults()
+    depth, masks = render([(1.2, 1.25, -0.075, 0.075, 0.8, z_top)], wall_x=4.0)
+    flags = ClassFlags.from_settings(CLASSES, cfg)
+    out = model_frame(masks, [vector(MOUSE, 0.6)], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags)
+    assert len(out.modeled.source) == 1
+    assert CLASSES[int(top_class(out.scores[0]))] == expected
+
+
 def test_a_rule_naming_a_class_the_map_lacks_does_nothing():
     cfg = defaults()
     cfg["modeling"]["taller_than"] = {"laptop": {"height": 0.35, "is": "monitor"}}
