@@ -45,6 +45,8 @@ class RevisitPlugin:
             register(name, Reordered(reverse, step, start))
         register("first-half", Reordered(span=(0.0, 0.5)))
         register("second-half", Reordered(span=(0.5, 1.0)))
+        register("third-from-2", Reordered(step=3, start=2))
+        register("third-from-1", Reordered(step=3, start=1))
 
 
 @pytest.fixture(scope="module")
@@ -224,3 +226,19 @@ def test_no_book_is_as_deep_as_a_desk(session, tmp_path):
     books = rows[top_class(smap.objects.scores[rows]) == smap.classes.index("book")]
     assert books.size >= 1
     assert smap.objects.size[books, :2].min(axis=1).max() < 0.6
+
+
+def test_every_third_frame_then_the_frames_between_leaves_no_mouse_on_a_foot(session, tmp_path):
+    """A pass first run in the thirty-second round (benchmarks/bench_real.py ``LATER_PASSES``): every
+    third frame from frame 2, then from frame 1 as a revisit. Every id stays, as counted, and no
+    "mouse" is left on either monitor's foot. Before ``stand_gap`` 0.08 (0.05) the revisit made a
+    "mouse" of the front monitor's foot plate seen alone, its top 0.055 m under the screen's box
+    (docs/decisions.md). (The trackball's place is not held on this pass: YOLOv8n names it in 7
+    of the 120 frames that show it, and the "mouse" there is the controller beside it.)"""
+    m = tmp_path / "map.h5"
+    first, ids1 = session("third-from-2", m)
+    second, ids2 = session("third-from-1", m, revisit=True)
+    assert within_truth(first) == [] and within_truth(second) == []
+    assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
+    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok and lm.cls is None]
+    assert wrong == []

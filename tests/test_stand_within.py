@@ -108,3 +108,15 @@ def test_a_foot_inside_a_screen_box_down_to_the_desk_joins_with_its_bottom_a_lit
     assert pairs_of(low, [TV, MOUSE], centred=0.25, within=0.5) == [(0, 1)]
     assert pairs_of(high, [TV, MOUSE], centred=0.25, within=0.5) == []
     assert pairs_of(low, [TV, MOUSE]) == []  # the gap rule alone: its top 0.065 over the box's bottom
+
+
+@pytest.mark.parametrize("plate_top, joins", [(0.745, True), (0.71, False)])
+def test_with_the_defaults_a_plate_joins_a_screen_whose_bottom_is_0_055_above_it(plate_top, joins):
+    """stand_gap 0.08 (thirty-second round): the screen of GAP_* (z 0.80..1.20) and a foot plate
+    0.03 tall under its middle. Its top 0.055 under the screen's bottom (z 0.715..0.745): within
+    0.08, a foot (0.05 before: a "mouse"); 0.09 under (z 0.68..0.71): not."""
+    a = defaults()["association"]
+    boxes = make_boxes([GAP_CENTER[0], [2.22, 0.0, plate_top - 0.015]], [GAP_SIZE[0], [0.14, 0.24, 0.03]])
+    got = stand_pairs(boxes, np.array([TV, MOUSE]), a["stand_gap"], a["stand_margin"], low=a["stand_low"],
+                      centred=a["stand_centred"], within=a["stand_within"])
+    assert [(i, j) for _, i, j in got] == ([(0, 1)] if joins else [])
