@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -73,8 +74,7 @@ class BenchPlugin:
         register("first-half", Reordered(span=(0.0, 0.5)))
         register("second-half", Reordered(span=(0.5, 1.0)))
         for reader, kwargs in {r: kw for sessions in LATER_PASSES.values() for r, kw in sessions}.items():
-            if reader != "every-other":  # registered above
-                register(reader, Reordered(**kwargs))
+            register(reader, Reordered(**kwargs))
 
 
 # Passes first run in the thirty-second round, after every rule of the earlier rounds was set on
@@ -86,7 +86,7 @@ LATER_PASSES = {
     "every fifth frame from frame 1": [("every-5th-from-1", {"step": 5, "start": 1})],
     "every third frame from frame 1, backwards": [("back-3rd-from-1", {"reverse": True, "step": 3, "start": 1})],
     "odd frames backwards, then the even ones": [("back-odd", {"reverse": True, "step": 2, "start": 1}),
-                                                 ("every-other", {"step": 2})],
+                                                 ("even-frames", {"step": 2})],
     "the first 70 %, then the last 70 % backwards": [("first-70", {"span": (0.0, 0.7)}),
                                                       ("back-last-70", {"reverse": True, "span": (0.3, 1.0)})],
     "every third frame from frame 2, then from frame 1": [("every-3rd-from-2", {"step": 3, "start": 2}),
@@ -192,7 +192,7 @@ def later_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None)
             ids = now if ids is None else ids
         print(f"    {label}: " + " -> ".join(line))
         if keep:
-            shutil.copyfile(m, Path(keep) / f"{name}-later-{label.replace(' ', '-').replace('%', 'pc')}.h5")
+            shutil.copyfile(m, Path(keep) / f"{name}-later-{re.sub('[^a-z0-9]+', '-', label).strip('-')}.h5")
         maps.append((label, m))
     return maps
 
@@ -292,9 +292,9 @@ def main():
                 part2, ids_part2 = census(m_part)
                 if args.keep:
                     shutil.copyfile(m_part, Path(args.keep) / f"{name}-{a}-then-{b}.h5")
-                print(f"  {a.replace('-', ' ')}, then the {b.replace('-', ' ')}: objects {sum(part1.values())} -> "
-                      f"{sum(part2.values())}; ids kept {len(ids_part1 & ids_part2) / max(len(ids_part1), 1):.0%}; "
-                      f"{verdict(name, part2)}")
+                print(f"  {a.replace('-', ' ')}, then the {b.replace('-', ' ')}: objects {sum(part1.values())} "
+                      f"({verdict(name, part1)}) -> {sum(part2.values())}; ids kept "
+                      f"{len(ids_part1 & ids_part2) / max(len(ids_part1), 1):.0%}; {verdict(name, part2)}")
                 for line in lost_ids(m_part, ids_part1 - ids_part2):
                     print(f"    lost: {line}")
                 for line in new_objects(m_part, ids_part2 - ids_part1, tmp / f"{name}-s1.h5"):

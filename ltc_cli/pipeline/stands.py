@@ -44,10 +44,7 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
     middle of its screen, inside the screen's box when that box reaches down to the desk (on
     tum-fr1-rpy a front monitor's foot 0.15-0.17 m tall, 1-5 % of the screen's length and 2-22 % of
     its depth from its middle, its top 0.30-0.32 of the screen's height inside it), while a mug
-    beside the screen's end stood 32-37 % of its length and 45-47 % of its depth from it. Inside a
-    screen box that reaches the desk, the foot's bottom may lie up to ``max_gap`` above the box's
-    (with the int8 model, tum-fr1-rpy read backwards: a 0.06 m plate 5 mm above the bottom of a
-    0.51 m screen box that its neck's views had taken down to the desk).
+    beside the screen's end stood 32-37 % of its length and 45-47 % of its depth from it.
 
     ``within``: when given, the smaller one's footprint centre also lies within this share of the
     larger one's length and width from its centre (0.5: inside its footprint, not only under the
@@ -69,16 +66,15 @@ def stand_pairs(boxes: Boxes, top: np.ndarray, max_gap: float | None, margin: fl
                   np.zeros((m, 8), bool))
     height = boxes.size[:, 2]
     gap = np.abs(z0[None, :] - z1[:, None])  # [a, b]: a's top to b's bottom
-    under = (gap <= max_gap) & (z0[:, None] < z0[None, :])
+    under = gap <= max_gap
     if low is not None:
         under &= height[:, None] <= low * height[None, :]
     if within is not None:
         under &= centred_under(boxes, within)
     if centred is not None:
         under |= (height[:, None] <= 0.5 * height[None, :]) & (z1[:, None] >= z0[None, :] - max_gap) \
-            & (z1[:, None] <= z0[None, :] + 0.5 * height[None, :]) & centred_under(boxes, centred, within) \
-            & (z0[:, None] < z0[None, :] + max_gap)
-    ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & under
+            & (z1[:, None] <= z0[None, :] + 0.5 * height[None, :]) & centred_under(boxes, centred, within)
+    ok = (top[:, None] != top[None, :]) & (vol[:, None] < vol[None, :]) & under & (z0[:, None] < z0[None, :])
     if established is not None:
         ok &= ~np.asarray(established, dtype=bool)[:, None]
     out = []
