@@ -58,6 +58,8 @@ class AssociationSettings(TypedDict):
     same_class_scale: Optional[float]
     other_class_height_ratio: Optional[float]
     other_class_min_overlap: Optional[float]
+    seen_apart_gap: Optional[float]
+    seen_apart_share: float
     min_visible_pairs: int
     containment: Optional[float]
     containment_other_class: Optional[float]
@@ -79,6 +81,7 @@ class AssociationSettings(TypedDict):
     stand_low: Optional[float]
     stand_centred: Optional[float]
     stand_within: Optional[float]
+    stand_inside_parts: bool
     part_label_share: Optional[float]
     container_max_width: Optional[dict[str, float]]
     merge_containment: Optional[float]

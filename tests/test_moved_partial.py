@@ -84,17 +84,21 @@ OLD_BOTTLE = (2.0, 2.1, -0.05, 0.05, 0.7, 1.0)
 NEW_BOTTLE = (2.0, 2.1, 0.10, 0.20, 0.7, 1.0)
 
 
-@pytest.mark.parametrize("old_still_there, expected_y", [(False, 0.15), (True, 0.0)])
-def test_seen_empty_moves_only_when_the_old_place_is_empty(old_still_there, expected_y):
+@pytest.mark.parametrize("old_still_there, seen_apart, expected_y", [
+    (False, 0.03, 0.15), (True, None, 0.0), (True, 0.03, 0.0)])
+def test_seen_empty_moves_only_when_the_old_place_is_empty(old_still_there, seen_apart, expected_y):
     """stale_partial_moves: seen-empty (issue 9, twenty-first round). The frame's one "bottle"
     mask is the new bottle's face: a partial box (its depth unmeasured) 15 cm from the old one, which
     it matches. With the old place empty the rays through the old box reach the wall at 4 m, past
     its middle (2.05 m): the box moves to the new bottle (its centre y 0.15, partial). With a bottle
-    still standing there the rays stop at 2.0 m: the box stays (y 0, Defined), the detection still
-    counts for it."""
+    still standing there the rays stop at 2.0 m: the box stays (y 0, Defined). Without
+    association.seen_apart_gap the detection still counts for it; with it (the default, thirty-third
+    round) the depth shows the old bottle standing in its box 5 cm from the new one's, over the
+    0.03 m gap: the new bottle is a second object, and the old one keeps its 10 detections."""
     from tests.scene import INTR, T_world_camera, render
 
     cfg = defaults()
+    cfg["association"]["seen_apart_gap"] = seen_apart
     mapper, row = mapper_with_bottle(cfg, session=1)
     t = mapper.map.objects
     t.cols["center"][row] = [2.05, 0.0, 0.85]
@@ -103,6 +107,9 @@ def test_seen_empty_moves_only_when_the_old_place_is_empty(old_still_there, expe
     scene = [NEW_BOTTLE, OLD_BOTTLE] if old_still_there else [NEW_BOTTLE]
     depth, masks = render(scene, wall_x=4.0)
     mapper.process_frame(0, "0", [masks[0]], [np.array([0.9, 0.1, 0.0])], depth, T_world_camera(), INTR, (0.3, 6.0))
-    assert t.n_det[row] == 11 and t.status[row] == ACTIVE and t.n == 1  # matched, nothing new
+    two = old_still_there and seen_apart is not None
+    assert t.n_det[row] == (10 if two else 11) and t.status[row] == ACTIVE and t.n == (2 if two else 1)
     assert t.center[row, 1] == pytest.approx(expected_y, abs=0.02)
     assert bool(t.defined[row]) is old_still_there
+    if two:
+        assert t.center[1, 1] == pytest.approx(0.15, abs=0.02) and t.status[1] == ACTIVE

@@ -104,3 +104,25 @@ def test_with_the_defaults_a_plate_joins_a_screen_whose_bottom_is_0_055_above_it
     got = stand_pairs(boxes, np.array([TV, MOUSE]), a["stand_gap"], a["stand_margin"], low=a["stand_low"],
                       centred=a["stand_centred"], within=a["stand_within"])
     assert [(i, j) for _, i, j in got] == ([(0, 1)] if joins else [])
+
+
+# A screen's box grown 0.37 m deep (tum-fr1-rpy, every third frame from frame 1 backwards, frame
+# 158), all yaw 0: x -0.31..0.31 (its length), y -0.185..0.185, z 0.7325..1.2675. Under it, its
+# top 0.0545 below the screen box's bottom, things 0.13 x 0.115 x 0.074 m: the white mouse in its
+# corner, centre (0.30, 0.17): 0.30 of the 0.62 length along (under half: 0.31), 0.17 across
+# (under half the 0.37 depth: 0.185); and a foot under its middle, centre (0.05, 0.17).
+CORNER_SCREEN = ([0.0, 0.0, 1.0], [0.62, 0.37, 0.535])
+
+
+@pytest.mark.parametrize("x, centred, pair", [
+    (0.30, 0.25, False),   # along, 0.30 is over stand_centred 0.25 x 0.62 = 0.155: not a foot
+    (0.30, None, True),    # stand_within alone (0.5 on both sides), as before the thirty-third round
+    (0.05, 0.25, True),    # a foot under the screen's middle
+])
+def test_a_thing_under_the_corner_of_a_deep_screen_box_is_not_its_foot(x, centred, pair):
+    b = Boxes(np.array([CORNER_SCREEN[0], [x, 0.17, 0.75]]), np.zeros(2),
+              np.array([CORNER_SCREEN[1], [0.13, 0.115, 0.074]]), np.ones((2, 8), bool))
+    out = stand_pairs(b, np.array([TV, MOUSE]), 0.08, 0.1, low=0.3, centred=centred, within=0.5)
+    assert [(a, c) for _, a, c in out] == ([(0, 1)] if pair else [])
+    if pair:
+        assert out[0][0] == pytest.approx(0.0545)

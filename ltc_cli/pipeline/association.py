@@ -158,6 +158,22 @@ def apart_labels(a: Boxes, b: Boxes, judged: np.ndarray, min_share: float | None
     return out
 
 
+def seen_elsewhere(gaps: np.ndarray, standing: np.ndarray, min_gap: float | None) -> np.ndarray:
+    """(M,) bool: map objects a box lies apart from (footprint gaps (M,) over ``min_gap`` metres;
+    None: never) that the frame's depth shows standing in their own box (``standing`` (M,),
+    :func:`~ltc_cli.pipeline.maintenance.standing_in_box`): those are not the box's thing.
+
+    A thing the camera sees in its place and a mask beside it are two things, however near their
+    boxes: on tum-fr1-rpy the game controller 5 cm beside the red trackball, both "mouse", took
+    the trackball's object by eq. 2, and the map had one box over both. A box that a localiser's
+    drift put beside its thing shows rays passing it (not standing there), so the views of one
+    small thing under drift still match."""
+    gaps = np.asarray(gaps, float)
+    if min_gap is None:
+        return np.zeros(gaps.shape, dtype=bool)
+    return (gaps > min_gap) & np.asarray(standing, bool)
+
+
 def nearest_under_threshold(dist: np.ndarray, thr: np.ndarray) -> int:
     """Index of the closest candidate within its threshold, or -1.
 

@@ -12,7 +12,7 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.camera import project, transform
 from ltc_cli.geometry.polygons import pairwise_ious_arrays
-from ltc_cli.pipeline.visibility import occupied_pixels, pixel_counts
+from ltc_cli.pipeline.visibility import occupied_pixels, pixel_counts, visible_pixels
 from ltc_cli.types import Intrinsics
 
 
@@ -107,6 +107,20 @@ def held_by_depth(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, i
     occupied[small] = occupied_pixels(boxes.take(small), T_map_camera, depth_m, intr, m_cfg["ray_step"],
                                       m_cfg["occupied_margin"], m_cfg["occupied_lift"], m_cfg["through_margin"])
     return stands_there(occupied, visible_px, m_cfg["occupied_share"])
+
+
+def standing_in_box(boxes: Boxes, T_map_camera: np.ndarray, depth_m: np.ndarray, intr: Intrinsics,
+                    depth_range: tuple[float, float], m_cfg: dict, share: float) -> np.ndarray:
+    """(M,) bool: boxes whose visible pixels' observed depth ends inside them (their bottom raised
+    by ``occupied_lift``, not past their middle by ``through_margin``) for at least ``share`` of
+    those pixels: the depth shows the thing standing in its own box, no drift margin given."""
+    if len(boxes) == 0:
+        return np.zeros(0, dtype=bool)
+    step = m_cfg["ray_step"]
+    visible = visible_pixels(boxes, T_map_camera, depth_m, intr, step, m_cfg["depth_tolerance"], depth_range)
+    occupied = occupied_pixels(boxes, T_map_camera, depth_m, intr, step, 0.0, m_cfg["occupied_lift"],
+                               m_cfg["through_margin"])
+    return stands_there(occupied, visible, share)
 
 
 def count_absence_views(cols: dict, rows: np.ndarray, clear_absent: np.ndarray, matched: np.ndarray,

@@ -19,8 +19,8 @@ from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
     adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps, half_diagonals,
-    match_reach, nearest_under_threshold, similar_volume, size_caps, thresholds_for, unlike_heights,
-    within_reach,
+    match_reach, nearest_under_threshold, seen_elsewhere, similar_volume, size_caps, thresholds_for,
+    unlike_heights, within_reach,
 )
 from ltc_cli.pipeline.class_settings import ClassSettings
 from ltc_cli.pipeline.integration import enclosing_box, fuse_scores
@@ -29,7 +29,7 @@ from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.pruning import SessionPruning
 from ltc_cli.pipeline.maintenance import (
     camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view, non_detection_vectors,
-    other_leads, other_outweighs, seen_empty, span_views, tentative, view_counts, widen_span,
+    other_leads, other_outweighs, seen_empty, span_views, standing_in_box, tentative, view_counts, widen_span,
 )
 from ltc_cli.pipeline.pictures import PICTURE_MARGIN, is_picture, picture_hits
 from ltc_cli.pipeline.reasons import other_leads_detail, picture_detail
@@ -71,6 +71,7 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         self._outgrow_turn = None if turn is None else np.radians(turn)
         self.rates = DetectionRates(smap, config["maintenance"])
         self._view = np.zeros(6)  # the camera's view of the frame being mapped (camera_view)
+        self._depth_view = None  # (T_map_camera, depth_m, intr, depth_range) of the frame being mapped
         self._moves: dict[int, Box] = {}  # rows whose detection elsewhere awaits their old place seen empty
         v_empty = config["maintenance"]["v_other_seen_empty"]
         self._empty_vectors = non_detection_vectors(smap.classes, v_empty, None) if v_empty is not None else None
@@ -126,6 +127,7 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         self._moves.clear()
         T_camera_map = invert_pose(T_map_camera)
         self._view = camera_view(T_map_camera)
+        self._depth_view = (T_map_camera, depth_m, intr, depth_range)
 
         t0 = clock()
         if stage1 is None:
@@ -245,6 +247,8 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
             det.center[0, 2], det.size[0, 2], det_defined, t.center[rows, 2], t.size[rows, 2], t.defined[rows],
             a_cfg["other_class_height_ratio"])
         unlike |= apart_labels(det, cand, other & ~unlike & (dist <= thr), a_cfg["other_class_min_overlap"])
+        if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
+            unlike |= self._seen_elsewhere(det, cand, ~unlike & (dist <= thr))
         best = nearest_under_threshold(dist, np.where(unlike, -1.0, thr))
         if best >= 0:
             return int(rows[best]), False
@@ -257,9 +261,31 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         if best < 0 and not det_defined:
             long_sides = np.maximum(det.size[0, :2].max(), cand.size[:, :2].max(axis=1))
             pieces = ~t.defined[rows] if a_cfg["adjoin_same_frame"] else ~t.defined[rows] & ~this_frame
+            if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
+                # Small things adjoin no piece the depth shows standing in its own box: pieces of a
+                # long object (a table end by end) stand in theirs too, but are not small.
+                small = long_sides <= self.cfg["maintenance"]["occupied_max_width"]
+                pieces &= ~self._seen_elsewhere(det, cand, pieces & small & (cand_classes == det_class))
             best = adjoining_partial(footprint_gaps(det, cand), cand_classes == det_class, pieces,
                                      a_cfg["partial_adjoin_gap"], long_sides, share)
         return (int(rows[best]), True) if best >= 0 else (-1, False)
+
+    def _seen_elsewhere(self, det: Boxes, cand: Boxes, judged: np.ndarray) -> np.ndarray:
+        """(M,) bool: of the candidates ``judged`` marks, those :func:`seen_elsewhere` parts from the
+        detection in this frame's depth; the depth is cast only for those apart from it."""
+        min_gap = self.cfg["association"]["seen_apart_gap"]
+        out, idx = np.zeros(judged.shape, dtype=bool), np.flatnonzero(judged)
+        gaps = footprint_gaps(det, cand.take(idx))
+        idx, gaps = idx[gaps > min_gap], gaps[gaps > min_gap]
+        if idx.size:
+            out[idx] = seen_elsewhere(gaps, self._standing(cand.take(idx)), min_gap)
+        return out
+
+    def _standing(self, boxes: Boxes) -> np.ndarray:
+        """:func:`standing_in_box` in the frame being mapped."""
+        T_map_camera, depth_m, intr, depth_range = self._depth_view
+        return standing_in_box(boxes, T_map_camera, depth_m, intr, depth_range, self.cfg["maintenance"],
+                               self.cfg["association"]["seen_apart_share"])
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
         """(missed, clear, empty, clear for the absence rule, seen through for it, held), each (M,)

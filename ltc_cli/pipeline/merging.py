@@ -10,7 +10,7 @@ import numpy as np
 
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, top_class
-from ltc_cli.pipeline.association import match_reach
+from ltc_cli.pipeline.association import footprint_gaps, match_reach, seen_elsewhere
 from ltc_cli.pipeline.deduplication import PIECES_KEY, enclosed_part, greedy_merges, label_survivor, merge_pairs
 from ltc_cli.pipeline.frame_modeling import not_whole
 from ltc_cli.pipeline.integration import (
@@ -40,6 +40,8 @@ class InstanceMerging:
                             t.scores[rows], self.cfg["integration"]["defined_part_volume"],
                             self.per_class.adjoin_share if a_cfg["merge_adjoining"] else None,
                             self.per_class.container_width, t.n_det[rows])
+        if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
+            pairs = self._not_seen_apart(rows, pairs)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
                                                                           if key < PIECES_KEY}
@@ -47,6 +49,25 @@ class InstanceMerging:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key,
                          pieces=(min(keep, drop), max(keep, drop)) in pieces)
         return len(merges) + self._merge_stands(rows[t.status[rows] == ACTIVE], frame_index, frame_key)
+
+    def _not_seen_apart(self, rows: np.ndarray, pairs: list) -> list:
+        """The merge pairs (key, a, b) over ``rows`` less those :func:`seen_elsewhere` parts: two
+        objects apart that this frame's depth shows both standing in their own boxes. Adjoining
+        pieces (keys from PIECES_KEY) of anything larger than a small thing (occupied_max_width)
+        lie apart by design and stay: a table seen end by end stands in both its boxes."""
+        t, min_gap = self.map.objects, self.cfg["association"]["seen_apart_gap"]
+        long_side = t.size[rows, :2].max(axis=1)
+        small = long_side <= self.cfg["maintenance"]["occupied_max_width"]
+        judged = [(a, b) for key, a, b in pairs if key < PIECES_KEY or (small[a] and small[b])]
+        gaps = {(a, b): float(footprint_gaps(t.boxes(rows[[a]]), t.boxes(rows[[b]]))[0]) for a, b in judged}
+        apart = sorted({r for (a, b), g in gaps.items() if g > min_gap for r in (a, b)})
+        if not apart:
+            return pairs
+        standing = dict(zip(apart, self._standing(t.boxes(rows[apart]))))
+        parted = {(a, b) for (a, b), g in gaps.items()
+                  if seen_elsewhere(np.array([g]), np.array([standing.get(a, False)]), min_gap)[0]
+                  and standing.get(b, False)}
+        return [(key, a, b) for key, a, b in pairs if (a, b) not in parted]
 
     def _merge_stands(self, rows: np.ndarray, frame_index, frame_key) -> int:
         """A smaller object standing right under a larger one of another class is its lower part
@@ -59,7 +80,8 @@ class InstanceMerging:
         vol = np.prod(t.size[rows], axis=1)
         pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"],
                             established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None,
-                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"])
+                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"],
+                            part_of=self.flags.taller_is if a_cfg["stand_inside_parts"] else None)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
         for keep, drop in merges:
             keep, drop = int(rows[keep]), int(rows[drop])
