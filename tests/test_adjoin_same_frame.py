@@ -23,14 +23,18 @@ def y_ranges(mapper):
     return sorted((float(c[:, 1].min()), float(c[:, 1].max())) for c in corners)
 
 
-@pytest.mark.parametrize("same_frame", [False, True])
-def test_two_masks_of_one_image_stay_two_objects(same_frame):
+@pytest.mark.parametrize("same_frame, seen_apart", [(False, 0.03), (True, None), (True, 0.03)])
+def test_two_masks_of_one_image_stay_two_objects(same_frame, seen_apart):
+    """With adjoin_same_frame on and seen_apart_gap off (the old rules) the right cup adjoins the
+    left one's new object. seen_apart_gap (thirty-third round) parts them too: the depth shows the
+    left cup standing in its new box, and the right cup's box lies over 3 cm beside it."""
     cfg = defaults()
     cfg["association"]["adjoin_same_frame"] = same_frame
+    cfg["association"]["seen_apart_gap"] = seen_apart
     mapper = make_mapper(cfg)
     res = frame(mapper, [LEFT, RIGHT], [CUP, CUP])
     ranges = y_ranges(mapper)
-    if same_frame:  # the paper-less old rule: the right cup adjoins the left one's new object
+    if same_frame and seen_apart is None:  # the old rules: the right cup adjoins the left one's new object
         assert (res.created, res.matched) == (1, 1)
         assert len(ranges) == 1 and ranges[0][1] - ranges[0][0] > 0.15  # over both: -0.10 .. 0.09
         return
