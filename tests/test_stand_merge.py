@@ -341,11 +341,12 @@ def test_two_defined_boxes_each_well_seen_keep_the_overlap_test():
     assert merged([True, True], x=0.25) == [(0, 1)]
 
 
-@pytest.mark.parametrize("n_det, apart", [((30, 12), True), ((30, 2), True), ((30, 1), False), (None, False)])
+@pytest.mark.parametrize("n_det, apart", [((30, 12), True), ((30, 3), True), ((30, 2), False), (None, False)])
 def test_through_the_mapper_two_well_seen_monitors_of_one_session_stay_two(n_det, apart):
     """As the revisit test above, but both monitors made in this very session (0): detected 30 and
-    12 times, or 30 and 2 (both at least defined_apart_detections 2) they stay two; 30 and 1, or with the setting
-    off (None), the older absorbs the other (eq. 2 over 8 vertices 0.48 under the 0.5 set here)."""
+    12 times, or 30 and 3 (both at least defined_apart_detections 3) they stay two; 30 and 2, or
+    with the setting off (None), the older absorbs the other (eq. 2 over 8 vertices 0.48 under the
+    0.5 set here)."""
     cfg = defaults()
     cfg["association"]["threshold_same_class"] = 0.5
     if n_det is None:
