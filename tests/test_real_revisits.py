@@ -21,7 +21,7 @@ from ltc_cli.ingest.session import ingest
 from ltc_cli.map.model import ACTIVE, top_class
 from ltc_cli.map.store import load_map
 from ltc_cli.recordings.open import open_recording
-from tests.real_truth import COUNTS, NEAR, TUM_FR1_RPY, box_gaps, check
+from tests.real_truth import APART, COUNTS, NEAR, TUM_FR1_RPY, box_gaps, check, merged_pairs
 from tests.replay import Reordered, Replay
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -170,12 +170,15 @@ def test_one_session_maps_every_hand_measured_place_and_the_monitors_as_two(sess
     the merges held ``defined_min_width`` (tv 0.3 m) a 0.24 m piece of the second monitor replaced
     its box, and its foot stayed a "mouse" (docs/decisions.md, thirtieth round). Before
     ``association.defined_apart_detections`` the two monitors merged into one box between them
-    (twenty-ninth round)."""
+    (twenty-ninth round). No box holds two things of one class (``APART``): before
+    ``association.seen_apart_gap`` one "mouse" box lay over the red trackball and the game
+    controller 5 cm beside it (thirty-third round)."""
     m = tmp_path / "map.h5"
     session("forward", m)
     smap = load_map(m)
     wrong = [f"{lm.name}: {where}" for lm, ok, where in check(smap) if not ok]
     assert wrong == []
+    assert merged_pairs(smap, APART["tum-fr1-rpy"]) == []
     rows = np.flatnonzero(smap.objects.status == ACTIVE)
     tvs = rows[top_class(smap.objects.scores[rows]) == smap.classes.index("tv")]
     nearest = []
