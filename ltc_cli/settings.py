@@ -42,6 +42,7 @@ class ModelingSettings(TypedDict):
     defined_min_width: dict[str, float]
     max_depth_ratio: Optional[float]
     max_short_side: dict[str, float]
+    max_long_side: dict[str, float]
     floor_classes: list[str]
     ground_max_gap: float
     floor_min_top: Optional[float]
