@@ -73,3 +73,40 @@ def test_through_the_mapper(overrides, lower_class, merged):
     res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
     assert list(mapper.map.objects.status[:2]) == ([ACTIVE, MERGED] if merged else [ACTIVE, ACTIVE])
     assert res.merged == int(merged)
+
+
+# The same screen as a partial "tv" box, 0.6 x 0.27 x 0.39 m (x 2.065..2.335, y -0.30..0.30,
+# z 0.855..1.245), and its foot and neck, a Defined "tv" (taller_than) 0.17 x 0.31 x 0.19 m under it
+# (x 2.135..2.305, y -0.135..0.175, z 0.685..0.875): tum-fr1-rpy read with int8, odd frames
+# backwards then the even ones, frame 212. Its top 0.02 m over the screen box's bottom, its
+# centre (2.22, 0.02) 0.02 from the screen's along both sides, 0.19 m tall: under half the
+# screen's 0.39 and in its lower half (stand_centred).
+PARTIAL_SCREEN = ([2.2, 0.0, 1.05], [0.27, 0.6, 0.39])
+FOOT_AND_NECK = ([2.22, 0.02, 0.78], [0.17, 0.31, 0.19])
+
+
+@pytest.mark.parametrize("part_under", [True, False])
+def test_a_defined_foot_under_a_partial_screen_of_its_class_is_a_piece_of_it(part_under):
+    """Both "tv", they merge (eq. 2 over the 8 vertices under 0.4 m; the foot's footprint wholly
+    in the screen's). With merge_part_under the merged box encloses both: the screen's footprint,
+    z 0.685..1.245. Without, the Defined foot replaces the partial screen (DESIGN 1.3), as it did."""
+    cfg = load_config(None, [f"association.merge_part_under={'true' if part_under else 'false'}"])
+    smap = SemanticMap.new(CLASSES)
+    v = np.full(len(CLASSES) + 1, 0.05)
+    v[TV], v[-1] = 0.9, 0.0
+    for (center, size), defined, n in ((PARTIAL_SCREEN, False, 30), (FOOT_AND_NECK, True, 2)):
+        smap.objects.append(center=np.array(center), yaw=0.0, size=np.array(size), visible=np.ones(8, bool),
+                            defined=defined, scores=v / v.sum(), n_det=n, status=ACTIVE, first_session=0,
+                            last_session=0)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    t = mapper.map.objects
+    assert res.merged == 1 and list(t.status[:2]) == [ACTIVE, MERGED]
+    bottom, top = t.center[0, 2] - t.size[0, 2] / 2, t.center[0, 2] + t.size[0, 2] / 2
+    if part_under:
+        assert (bottom, top) == (pytest.approx(0.685, abs=0.02), pytest.approx(1.245, abs=0.02))
+        assert t.size[0, :2].max() == pytest.approx(0.6, abs=0.03)
+    else:
+        assert (bottom, top) == (pytest.approx(0.685, abs=1e-6), pytest.approx(0.875, abs=1e-6))

@@ -45,6 +45,8 @@ class InstanceMerging:
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
         pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
                                                                           if key < PIECES_KEY}
+        if a_cfg["merge_part_under"] and a_cfg["stand_gap"] is not None:
+            pieces |= self._parts_under(rows, pairs, top)
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key,
                          pieces=(min(keep, drop), max(keep, drop)) in pieces)
@@ -68,6 +70,22 @@ class InstanceMerging:
                   if seen_elsewhere(np.array([g]), np.array([standing.get(a, False)]), min_gap)[0]
                   and standing.get(b, False)}
         return [(key, a, b) for key, a, b in pairs if (a, b) not in parted]
+
+    def _parts_under(self, rows: np.ndarray, pairs: list, top: np.ndarray) -> set:
+        """The merge pairs (a, b) over ``rows`` of one class, one Defined and one partial, where the
+        smaller stands right under the larger as a stand does (:func:`stand_pairs`, whatever their
+        classes): pieces of one object, whose merged box encloses both when the Defined one is the
+        smaller (a monitor's foot and neck, "tv" by ``taller_than``, under its screen's partial box;
+        a Defined box replacing the partial one took the screen down to its foot)."""
+        t, a_cfg = self.map.objects, self.cfg["association"]
+        same = {(min(a, b), max(a, b)) for key, a, b in pairs if key < PIECES_KEY and top[a] == top[b]
+                and t.defined[rows[a]] != t.defined[rows[b]]}
+        if not same:
+            return set()
+        idx = np.array(sorted({r for p in same for r in p}))
+        under = stand_pairs(t.boxes(rows[idx]), np.arange(idx.size), a_cfg["stand_gap"], a_cfg["stand_margin"],
+                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"])
+        return same & {(int(idx[i]), int(idx[j])) for _, i, j in under}
 
     def _merge_stands(self, rows: np.ndarray, frame_index, frame_key) -> int:
         """A smaller object standing right under a larger one of another class is its lower part
