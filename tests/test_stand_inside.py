@@ -53,24 +53,31 @@ def test_a_mouse_inside_the_screens_floor_is_its_foot():
     assert pairs(MOUSE, part_of, ([2.22, 0.02, 0.845], [0.18, 0.29, 0.06])) == []
 
 
+def after_one_frame(overrides, objects):
+    """A mapper (static policy) over a map of axis-aligned objects ((center, size), class, Defined,
+    detections), each 0.9 on its class, after one frame with no detections that has them in view:
+    (mapper, the frame's result)."""
+    cfg = load_config(None, list(overrides))
+    smap = SemanticMap.new(CLASSES)
+    for (center, size), cls, defined, n in objects:
+        v = np.full(len(CLASSES) + 1, 0.05)
+        v[cls], v[-1] = 0.9, 0.0
+        smap.objects.append(center=np.array(center), yaw=0.0, size=np.array(size), visible=np.ones(8, bool),
+                            defined=defined, scores=v / v.sum(), n_det=n, status=ACTIVE, first_session=0,
+                            last_session=0)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
+    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
+    return mapper, mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+
+
 @pytest.mark.parametrize("overrides, lower_class, merged", [
     ((), MOUSE, True),
     (("association.stand_inside_parts=false",), MOUSE, False),
     ((), KEYBOARD, False),
 ])
 def test_through_the_mapper(overrides, lower_class, merged):
-    cfg = load_config(None, list(overrides))
-    smap = SemanticMap.new(CLASSES)
-    for (center, size), cls, n in ((SCREEN, TV, 30), (PLATE, lower_class, 10)):
-        v = np.full(len(CLASSES) + 1, 0.05)
-        v[cls], v[-1] = 0.9, 0.0
-        smap.objects.append(center=np.array(center), yaw=0.0, size=np.array(size), visible=np.ones(8, bool),
-                            defined=True, scores=v / v.sum(), n_det=n, status=ACTIVE, first_session=0,
-                            last_session=0)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
-    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
-    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    mapper, res = after_one_frame(overrides, [(SCREEN, TV, True, 30), (PLATE, lower_class, True, 10)])
     assert list(mapper.map.objects.status[:2]) == ([ACTIVE, MERGED] if merged else [ACTIVE, ACTIVE])
     assert res.merged == int(merged)
 
@@ -90,18 +97,8 @@ def test_a_defined_foot_under_a_partial_screen_of_its_class_is_a_piece_of_it(par
     """Both "tv", they merge (eq. 2 over the 8 vertices under 0.4 m; the foot's footprint wholly
     in the screen's). With merge_part_under the merged box encloses both: the screen's footprint,
     z 0.685..1.245. Without, the Defined foot replaces the partial screen (DESIGN 1.3), as it did."""
-    cfg = load_config(None, [f"association.merge_part_under={'true' if part_under else 'false'}"])
-    smap = SemanticMap.new(CLASSES)
-    v = np.full(len(CLASSES) + 1, 0.05)
-    v[TV], v[-1] = 0.9, 0.0
-    for (center, size), defined, n in ((PARTIAL_SCREEN, False, 30), (FOOT_AND_NECK, True, 2)):
-        smap.objects.append(center=np.array(center), yaw=0.0, size=np.array(size), visible=np.ones(8, bool),
-                            defined=defined, scores=v / v.sum(), n_det=n, status=ACTIVE, first_session=0,
-                            last_session=0)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "static").factory(cfg["maintenance"]), session=0)
-    depth = np.full((INTR.height, INTR.width), 4.0, np.float32)
-    res = mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
+    overrides = [f"association.merge_part_under={'true' if part_under else 'false'}"]
+    mapper, res = after_one_frame(overrides, [(PARTIAL_SCREEN, TV, False, 30), (FOOT_AND_NECK, TV, True, 2)])
     t = mapper.map.objects
     assert res.merged == 1 and list(t.status[:2]) == [ACTIVE, MERGED]
     bottom, top = t.center[0, 2] - t.size[0, 2] / 2, t.center[0, 2] + t.size[0, 2] / 2

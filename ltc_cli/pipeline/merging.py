@@ -66,9 +66,10 @@ class InstanceMerging:
         if not apart:
             return pairs
         standing = dict(zip(apart, self._standing(t.boxes(rows[apart]))))
-        parted = {(a, b) for (a, b), g in gaps.items()
-                  if seen_elsewhere(np.array([g]), np.array([standing.get(a, False)]), min_gap)[0]
-                  and standing.get(b, False)}
+        both = [(a, b) for a, b in gaps]
+        both_standing = np.array([standing.get(a, False) and standing.get(b, False) for a, b in both], dtype=bool)
+        parted = seen_elsewhere(np.array([gaps[p] for p in both]), both_standing, min_gap)
+        parted = {p for p, yes in zip(both, parted) if yes}
         return [(key, a, b) for key, a, b in pairs if (a, b) not in parted]
 
     def _parts_under(self, rows: np.ndarray, pairs: list, top: np.ndarray) -> set:
