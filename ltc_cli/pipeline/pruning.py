@@ -10,7 +10,7 @@ import numpy as np
 
 from ltc_cli.map.model import ACTIVE, REMOVED, top_class
 from ltc_cli.pipeline.maintenance import absent_in_session, removed_unconfirmed, same_class_overlap, unconfirmed
-from ltc_cli.pipeline.reasons import absent_detail, unconfirmed_detail
+from ltc_cli.pipeline.reasons import absent_detail, removed_by_misses, returned_detail, unconfirmed_detail
 
 
 class SessionPruning:
@@ -29,6 +29,8 @@ class SessionPruning:
         removed.
         """
         t, m_cfg = self.map.objects, self.cfg["maintenance"]
+        if m_cfg["return_after_misses"]:
+            self._return_missed(max(1, min_detections), frame_index, frame_key)
         min_views = m_cfg["min_detection_views"]
         rows = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session))
         seen_from = self._confirm_views()
@@ -56,6 +58,53 @@ class SessionPruning:
                                             seen_from[row], min_views))
         self.rates.settle()
         return len(rows) + gone
+
+    def _return_missed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
+        """Objects that non-detections removed in this session return, with their ids, where a new
+        object of their class detected at least ``min_detections`` times in it stands on their
+        footprint (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`): the new one merges
+        into the old (counts and class evidence), whose box becomes the new one's.
+
+        A removal by eq. 4 is a belief that the thing went; detections of it at its place in the
+        same drive say it did not, and that its misses were the detector's (or its box was off, and
+        its place seen through). On tum-fr1-rpy (int8) a far chair with two detections went after
+        three misses, and came back 40 frames later as a new object: an id lost for nothing.
+        Returns how many came back."""
+        t, gone = self.map.objects, set()
+        # The log is append-only by session: this session's events are its tail (a map's log may
+        # hold millions of events).
+        for e in reversed(self.map.events):
+            if e.session != self.session:
+                break
+            if e.kind == "removed" and removed_by_misses(e.detail) and t.status[e.object_id - 1] == REMOVED:
+                gone.add(e.object_id - 1)
+        gone = np.array(sorted(gone), dtype=int)
+        new = np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session) & (t.n_det >= min_detections))
+        if not len(gone) or not len(new):
+            return 0
+        new = new[np.argsort(-t.n_det[new], kind="stable")]  # the best evidence first
+        top = top_class(t.scores)
+        match = same_class_overlap(t.boxes(new), top[new], t.boxes(gone), top[gone])
+        back = 0
+        for row, k in zip(new, match):
+            if k < 0 or t.status[gone[k]] != REMOVED:
+                continue
+            old = int(gone[k])
+            self.rates.touch(old)
+            # Its misses are contradicted: the scores they moved to "other" go back to its classes.
+            s = t.scores[old].copy()
+            s[-1] = 0.0
+            t.cols["scores"][old] = s / s.sum()
+            t.cols["status"][old] = ACTIVE
+            self._log(frame_index, frame_key, "updated", old + 1, detail=returned_detail(row + 1, t.n_det[row]))
+            box = t.box(row)
+            self._absorb(old, int(row), frame_index, frame_key)
+            # Where the old box stood the misses saw through: the thing is in the box detected now.
+            t.set_box(old, box)
+            self.index.insert(old, box.center, box.size)
+            t.cols["last_frame"][old] = t.last_frame[row]
+            back += 1
+        return back
 
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key):
         """``rows`` less those an earlier session's unconfirmed object confirms

@@ -31,6 +31,18 @@ def other_leads_detail(scores: np.ndarray, classes: list[str], n_nondet: int, n_
             f"{plural(int(n_nondet), 'non-detection')} and {plural(int(n_det), 'detection')}")
 
 
+def removed_by_misses(detail: str) -> bool:
+    """True for the reason :func:`other_leads_detail` writes (eq. 4: "other 0.540 > ..."), not the
+    absence rule's ("other: clearly ...")."""
+    return detail.startswith("other ")
+
+
+def returned_detail(new_id: int, n_det: int) -> str:
+    """The event log's reason for an object's return (starts "returned:")."""
+    return (f"returned: non-detections removed it in this session, and object {int(new_id)}, "
+            f"{plural(int(n_det), 'detection')} of its class at its place, is it")
+
+
 def picture_detail(n_flat: int, n_det: int) -> str:
     """The event log's reason for a removal as a picture on a wall (starts "picture:")."""
     return (f"picture: {plural(int(n_flat), 'detection')} of it lay flat on the wall around "

@@ -111,10 +111,15 @@ def maintenance_removals(events) -> dict[int, tuple[int, int]]:
     maintenance, eq. 4 and the absence rule): events of kind ``removed`` whose detail starts with
     "other" (the `other` score overtook the object's class). Other removals (e.g. "unconfirmed": a
     one-off detection never seen again) are not counted. An end-of-session removal (frame -1) is
-    at frame ``END_OF_SESSION``, after every frame; a missing session or frame is -1."""
+    at frame ``END_OF_SESSION``, after every frame; a missing session or frame is -1. A removal
+    that a later "returned:" event undid (``maintenance.return_after_misses``: the object came back
+    with its id) is no removal: the map holds the object."""
     out = {}
     for e in events:
-        if _event_field(e, "kind") == "removed" and str(_event_field(e, "detail") or "").startswith("other"):
+        detail = str(_event_field(e, "detail") or "")
+        if _event_field(e, "kind") == "updated" and detail.startswith("returned:"):
+            out.pop(int(_event_field(e, "object_id")), None)
+        if _event_field(e, "kind") == "removed" and detail.startswith("other"):
             session, frame = (_event_field(e, k) for k in ("session", "frame"))
             session = -1 if session is None else int(session)
             frame = -1 if frame is None else int(frame)
