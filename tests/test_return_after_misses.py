@@ -10,7 +10,8 @@ from ltc_cli.config import defaults
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, Event, SemanticMap
 from ltc_cli.pipeline.mapper import Mapper
 from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, removed_by_misses
-from tests.test_identity import CLASSES, chair_vector
+from tests.scene import INTR, T_world_camera, render
+from tests.test_identity import CHAIR_BOX, CHAIR_FACE, CLASSES, chair_vector
 
 # The chair the misses removed: chair 0.3, the nine other classes 0.1 / 9 each, other 0.6.
 OLD_SCORES = np.r_[0.3, np.full(9, 0.1 / 9), 0.6]
@@ -96,3 +97,39 @@ def test_a_returned_object_is_not_counted_as_removed():
     # Removed again in a later session after its return: a removal again.
     events.append(Event(2, 4, "2-4", "removed", 1, 0, miss))
     assert maintenance_removals(events) == {1: (2, 4), 2: (1, 9)}
+
+
+@pytest.mark.parametrize("rule", [True, False])
+def test_through_the_mapper_a_chair_missed_then_seen_again_keeps_its_id(rule):
+    """Session 1 over a chair that session 0 made from two detections: frames that see through its
+    place (the wall 4 m away behind it) remove it by eq. 4; then the chair is there again and is
+    detected in three frames from one place. With the rule it is object 1 again at the session's
+    end; without it the new object is unconfirmed (one distinct view) and the chair is lost, as
+    tum-fr1-rpy's far chair was."""
+    cfg = defaults()
+    cfg["maintenance"]["return_after_misses"] = rule
+    smap = SemanticMap.new(CLASSES)
+    smap.objects.append(center=np.array(CHAIR_BOX[0]), yaw=0.0, size=np.array(CHAIR_BOX[1]),
+                        visible=np.ones(8, bool), defined=True, scores=chair_vector(0.9), n_det=2, status=ACTIVE,
+                        first_session=0, last_session=0)
+    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
+                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
+    t = smap.objects
+    empty, _ = render([], wall_x=4.0)
+    k = 0
+    while t.status[0] == ACTIVE and k < 30:
+        mapper.process_frame(k, str(k), [], [], empty, T_world_camera(), INTR, (0.3, 6.0))
+        k += 1
+    assert t.status[0] == REMOVED
+    assert removed_by_misses(next(e.detail for e in smap.events if e.kind == "removed"))
+    seen, masks = render([CHAIR_FACE], wall_x=4.0)
+    for f in range(k, k + 3):
+        mapper.process_frame(f, str(f), [masks[0]], [chair_vector(0.8)], seen, T_world_camera(), INTR, (0.3, 6.0))
+    assert t.n == 2 and t.n_det[1] == 3 and t.status[1] == ACTIVE  # a new object: the removed one is no candidate
+    m = cfg["maintenance"]
+    mapper.prune_unconfirmed(m["min_detections"], -1, "end of session", m["min_detection_share"])
+    if rule:
+        assert (t.status[0], t.status[1], t.n_det[0]) == (ACTIVE, MERGED, 5)
+        assert t.scores[0][:-1].argmax() == 0
+    else:
+        assert (t.status[0], t.status[1]) == (REMOVED, REMOVED)
