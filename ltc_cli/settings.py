@@ -66,6 +66,7 @@ class AssociationSettings(TypedDict):
     containment_other_class: Optional[float]
     other_class_volume_ratio: Optional[float]
     partial_adjoin_gap: Optional[float]
+    adjoin_max_turn: dict[str, float]
     partial_adjoin_share: Optional[dict[str, float]]
     adjoin_same_frame: bool
     merge_other_class_iou: Optional[float]

@@ -318,6 +318,28 @@ def footprint_gaps(det: Boxes, cands: Boxes) -> np.ndarray:
     return np.where(np.minimum(zd1, zc1) > np.maximum(zd0, zc0), gap, np.inf)
 
 
+# A footprint whose longer side is this many times its shorter one has a long axis worth comparing
+# (a monitor's screen, 0.6 x 0.1 m; a table's end): adjoin_max_turn.
+ADJOIN_ELONGATED = 1.5
+
+
+def long_axis_turns(yaw: float, size: np.ndarray, yaws: np.ndarray, sizes: np.ndarray, elongated: float
+                    ) -> np.ndarray:
+    """(M,) radians in [0, pi/2] between the long footprint axis of one box (yaw, size (3,)) and
+    that of each of M boxes (yaws (M,), sizes (M, 3)); 0 where either box is not ``elongated``
+    (its longer footprint side under that many times its shorter one: its axes say little)."""
+    def axis(y, s):
+        s = np.atleast_2d(s)
+        return np.asarray(y, float) + np.where(s[:, 0] >= s[:, 1], 0.0, np.pi / 2)
+
+    def long(s):
+        s = np.atleast_2d(s)
+        return s[:, :2].max(axis=1) >= elongated * s[:, :2].min(axis=1)
+
+    d = np.abs(axis(yaw, size)[0] - axis(yaws, sizes)) % np.pi
+    return np.where(long(size)[0] & long(sizes), np.minimum(d, np.pi - d), 0.0)
+
+
 def adjoining_partial(gaps: np.ndarray, same_class: np.ndarray, cand_partial: np.ndarray, max_gap: float | None,
                       long_sides: np.ndarray | None = None, share: float | None = None) -> int:
     """The same-class partial candidate whose footprint touches a partial detection (gap within

@@ -18,8 +18,8 @@ from ltc_cli.geometry.boxes import Box, Boxes
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
-    adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps, half_diagonals,
-    match_reach, nearest_under_threshold, seen_elsewhere, similar_volume, size_caps, thresholds_for,
+    ADJOIN_ELONGATED, adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps,
+    half_diagonals, long_axis_turns, match_reach, nearest_under_threshold, seen_elsewhere, similar_volume, size_caps, thresholds_for,
     unlike_heights, within_reach,
 )
 from ltc_cli.pipeline.class_settings import ClassSettings
@@ -266,6 +266,10 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
                 # long object (a table end by end) stand in theirs too, but are not small.
                 small = long_sides <= self.cfg["maintenance"]["occupied_max_width"]
                 pieces &= ~self._seen_elsewhere(det, cand, pieces & small & (cand_classes == det_class))
+            turn = (a_cfg["adjoin_max_turn"] or {}).get(self.map.classes[det_class])
+            if turn is not None:  # pieces of one flat, straight thing lie along one line
+                pieces &= long_axis_turns(det.yaw[0], det.size[0], cand.yaw, cand.size,
+                                          ADJOIN_ELONGATED) <= np.radians(turn)
             best = adjoining_partial(footprint_gaps(det, cand), cand_classes == det_class, pieces,
                                      a_cfg["partial_adjoin_gap"], long_sides, share)
         return (int(rows[best]), True) if best >= 0 else (-1, False)
