@@ -94,7 +94,7 @@ class SessionPruning:
             # Its misses are contradicted: the scores they moved to "other" go back to its classes.
             s = t.scores[old].copy()
             s[-1] = 0.0
-            t.cols["scores"][old] = s / s.sum()
+            t.cols["scores"][old] = s / s.sum() if s.sum() > 0 else t.scores[row]
             t.cols["status"][old] = ACTIVE
             self._log(frame_index, frame_key, "updated", old + 1, detail=returned_detail(row + 1, t.n_det[row]))
             box = t.box(row)
