@@ -19,8 +19,8 @@ from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, top_class
 from ltc_cli.pipeline.association import (
     ADJOIN_ELONGATED, adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps,
-    half_diagonals, long_axis_turns, match_reach, nearest_under_threshold, seen_elsewhere, similar_volume, size_caps, thresholds_for,
-    unlike_heights, within_reach,
+    half_diagonals, long_axis_turns, match_reach, nearest_under_threshold, seen_elsewhere, similar_volume,
+    size_caps, thresholds_for, unlike_heights, within_reach,
 )
 from ltc_cli.pipeline.class_settings import ClassSettings
 from ltc_cli.pipeline.integration import enclosing_box, fuse_scores
