@@ -328,16 +328,11 @@ def long_axis_turns(yaw: float, size: np.ndarray, yaws: np.ndarray, sizes: np.nd
     """(M,) radians in [0, pi/2] between the long footprint axis of one box (yaw, size (3,)) and
     that of each of M boxes (yaws (M,), sizes (M, 3)); 0 where either box is not ``elongated``
     (its longer footprint side under that many times its shorter one: its axes say little)."""
-    def axis(y, s):
-        s = np.atleast_2d(s)
-        return np.asarray(y, float) + np.where(s[:, 0] >= s[:, 1], 0.0, np.pi / 2)
-
-    def long(s):
-        s = np.atleast_2d(s)
-        return s[:, :2].max(axis=1) >= elongated * s[:, :2].min(axis=1)
-
-    d = np.abs(axis(yaw, size)[0] - axis(yaws, sizes)) % np.pi
-    return np.where(long(size)[0] & long(sizes), np.minimum(d, np.pi - d), 0.0)
+    sizes = np.vstack([size, sizes])[:, :2]  # row 0: the one box
+    axes = np.r_[yaw, yaws] + np.where(sizes[:, 0] >= sizes[:, 1], 0.0, np.pi / 2)
+    long = sizes.max(axis=1) >= elongated * sizes.min(axis=1)
+    d = np.abs(axes[1:] - axes[0]) % np.pi
+    return np.where(long[0] & long[1:], np.minimum(d, np.pi - d), 0.0)
 
 
 def adjoining_partial(gaps: np.ndarray, same_class: np.ndarray, cand_partial: np.ndarray, max_gap: float | None,
