@@ -132,6 +132,7 @@ class MaintenanceSettings(TypedDict):
     min_detection_share: Optional[float]
     min_detection_views: Optional[int]
     confirm_across_sessions: bool
+    confirm_across_views: bool
     return_after_misses: bool
     confirm_min_move: Optional[float]
     confirm_min_turn: Optional[float]

@@ -7,10 +7,9 @@ import pytest
 from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
-from ltc_cli.pipeline.maintenance import (
-    learnt_detection_rate, new_view, seen_empty, unconfirmed, v_other_from_detection_rate,
-)
+from ltc_cli.pipeline.maintenance import learnt_detection_rate, seen_empty, unconfirmed, v_other_from_detection_rate
 from ltc_cli.pipeline.mapper import Mapper
+from ltc_cli.pipeline.views import new_view
 from tests.scene import INTR, T_world_camera, render
 
 CLASSES = ["chair"] + [f"class{i}" for i in range(9)]  # r = 10 classes, then other

@@ -5,7 +5,7 @@ views in any order give the same answer. Values worked out by hand."""
 import numpy as np
 import pytest
 
-from ltc_cli.pipeline.maintenance import new_view, span_views, union_span, widen_span
+from ltc_cli.pipeline.views import new_view, span_views, union_span, widen_span
 
 
 def view(x, y=0.0, turn_deg=0.0):

@@ -65,7 +65,7 @@ COLUMNS = {
     "det_views": ((), np.int64),
     # The least and greatest camera position, then forward axis, along x, y, z and the horizontal
     # diagonals (5 + 5 + 5 + 5), over the views that detected it: whether two of them lie apart,
-    # whatever their order (maintenance.span_views).
+    # whatever their order (views.span_views).
     "det_span": ((20,), np.float64),
     "status": ((), np.int8),
     "first_session": ((), np.int64),

@@ -28,9 +28,10 @@ from ltc_cli.pipeline.integrating import BoxIntegration
 from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.pruning import SessionPruning
 from ltc_cli.pipeline.maintenance import (
-    camera_view, count_absence_views, found_again, held_by_depth, in_view, new_view, non_detection_vectors,
-    other_leads, other_outweighs, seen_empty, span_views, standing_in_box, tentative, view_counts, widen_span,
+    count_absence_views, found_again, held_by_depth, in_view, non_detection_vectors, other_leads, other_outweighs,
+    seen_empty, standing_in_box, tentative, view_counts,
 )
+from ltc_cli.pipeline.views import camera_view, new_view, span_views, widen_span
 from ltc_cli.pipeline.pictures import PICTURE_MARGIN, is_picture, picture_hits
 from ltc_cli.pipeline.reasons import other_leads_detail, picture_detail
 from ltc_cli.pipeline.rates import DetectionRates

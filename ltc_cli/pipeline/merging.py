@@ -16,7 +16,8 @@ from ltc_cli.pipeline.frame_modeling import not_whole
 from ltc_cli.pipeline.integration import (
     confirmed_side, enclosing_box, label_weight, merge_objects, merged_box, merged_scores, stale_side,
 )
-from ltc_cli.pipeline.maintenance import tentative, union_span
+from ltc_cli.pipeline.maintenance import tentative
+from ltc_cli.pipeline.views import union_span
 from ltc_cli.pipeline.stands import stand_pairs
 
 

@@ -11,6 +11,7 @@ import numpy as np
 from ltc_cli.map.model import ACTIVE, REMOVED, top_class
 from ltc_cli.pipeline.maintenance import absent_in_session, removed_unconfirmed, same_class_overlap, unconfirmed
 from ltc_cli.pipeline.reasons import absent_detail, removed_by_misses, returned_detail, unconfirmed_detail
+from ltc_cli.pipeline.views import views_apart
 
 
 class SessionPruning:
@@ -37,6 +38,9 @@ class SessionPruning:
         rows = rows[unconfirmed(t.n_det[rows], t.n_clear[rows], min_detections, min_share, seen_from[rows], min_views)]
         if m_cfg["confirm_across_sessions"] and len(rows):
             rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key)
+        if m_cfg["confirm_across_views"] and min_views is not None and len(rows):
+            rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
+                                           apart=True)
         absent = m_cfg["absent_after_views"]
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
@@ -106,18 +110,36 @@ class SessionPruning:
             back += 1
         return back
 
-    def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key):
+    def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
+                           apart: bool = False):
         """``rows`` less those an earlier session's unconfirmed object confirms
-        (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`), which stay (logged)."""
-        t = self.map.objects
+        (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`), which stay (logged).
+
+        ``apart`` (confirm_across_views): only objects that had detections enough in their session
+        and lacked a second view alone confirm each other, and only when their views taken
+        together are two (:func:`~ltc_cli.pipeline.views.views_apart`). tum-fr1-rpy's monitor
+        behind the front one, driven in two halves, is named 5-7 times in each half from one view:
+        the same evidence as the whole drive's, which confirms it. A false positive that recurs
+        from one view recurs from the same view on the next drive, which this does not count."""
+        t, m_cfg = self.map.objects, self.cfg["maintenance"]
         weak = unconfirmed(t.n_det, t.n_clear, min_detections, min_share, seen_from, min_views)
+        cand = rows
+        if apart:
+            enough = ~unconfirmed(t.n_det, t.n_clear, min_detections, min_share)
+            weak &= enough
+            cand = rows[enough[rows]]
         old = np.flatnonzero(removed_unconfirmed(t.status, t.first_session, t.last_session, weak, self.session, REMOVED))
-        top, boxes = top_class(t.scores), t.boxes(rows)
-        match = same_class_overlap(boxes, top[rows], t.boxes(old), top[old])
+        top, boxes = top_class(t.scores), t.boxes(cand)
+        match = same_class_overlap(boxes, top[cand], t.boxes(old), top[old])
         # A thing already in the map under its class is not confirmed again beside it (a duplicate).
         live = np.setdiff1d(np.flatnonzero(t.status == ACTIVE), rows)
-        match[same_class_overlap(boxes, top[rows], t.boxes(live), top[live]) >= 0] = -1
-        for row, k in zip(rows[match >= 0], match[match >= 0]):
+        match[same_class_overlap(boxes, top[cand], t.boxes(live), top[live]) >= 0] = -1
+        ok = match >= 0
+        if apart and ok.any():
+            ok[ok] = views_apart(t.det_span[cand[ok]], t.det_span[old[match[ok]]],
+                                 m_cfg["confirm_min_move"], m_cfg["confirm_min_turn"])
+        how = "seen from another view" if apart else "unconfirmed"
+        for row, k in zip(cand[ok], match[ok]):
             self._log(frame_index, frame_key, "updated", row + 1,
-                      detail=f"confirmed: object {old[k] + 1} stood here, unconfirmed, in session {t.last_session[old[k]]}")
-        return rows[match < 0]
+                      detail=f"confirmed: object {old[k] + 1} stood here, {how}, in session {t.last_session[old[k]]}")
+        return np.setdiff1d(rows, cand[ok])
