@@ -61,6 +61,7 @@ class AssociationSettings(TypedDict):
     other_class_min_overlap: Optional[float]
     seen_apart_gap: Optional[float]
     seen_apart_share: float
+    max_union_length: dict[str, float]
     min_visible_pairs: int
     containment: Optional[float]
     containment_other_class: Optional[float]

@@ -139,6 +139,9 @@ def test_a_drive_along_the_rest_of_the_route_keeps_every_id(session, tmp_path, f
     assert within_truth(counts2) == []
     wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
     assert wrong == []
+    # The trackball and the game controller 2 cm beside it, both "mouse", in two boxes: before
+    # ``association.max_union_length`` the second half's first frames made one 0.29 m box of them.
+    assert merged_pairs(load_map(m), APART["tum-fr1-rpy"]) == []
 
 
 def test_the_hand_measured_places_are_where_the_recording_puts_them():

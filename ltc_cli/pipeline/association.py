@@ -356,3 +356,28 @@ def adjoining_partial(gaps: np.ndarray, same_class: np.ndarray, cand_partial: np
     if not ok.any():
         return -1
     return int(np.where(ok, gaps, np.inf).argmin())
+
+
+def union_diameters(foot_a: np.ndarray, foot_b: np.ndarray) -> np.ndarray:
+    """(K,) the diameter of the footprint each pair of boxes would enclose together: the largest
+    distance between two of their footprint corners foot_a, foot_b (K, 4, 2)."""
+    pts = np.concatenate([foot_a, foot_b], axis=1)  # (K, 8, 2)
+    return np.linalg.norm(pts[:, :, None, :] - pts[:, None, :, :], axis=-1).max(axis=(1, 2))
+
+
+def too_long_together(foot_a: np.ndarray, foot_b: np.ndarray, limit) -> np.ndarray:
+    """(K,) bool: pairs of footprints (K, 4, 2) each within ``limit`` metres corner to corner (K,
+    or one for all; inf: no limit) that together would span more: two things of a class that is
+    never that long (``association.max_union_length``; tum-fr1-rpy's trackball and the game
+    controller 2 cm beside it, both "mouse", made one 0.29 m box). A box longer than the limit
+    alone is no such thing (a monitor's foot called "mouse"), and the rule says nothing of it."""
+    limit = np.broadcast_to(np.asarray(limit, dtype=np.float64), (len(foot_a),))
+    out = np.zeros(len(foot_a), dtype=bool)
+    judged = np.flatnonzero(np.isfinite(limit))
+    if not len(judged):
+        return out
+    a, b, lim = foot_a[judged], foot_b[judged], limit[judged]
+    each = (union_diameters(a, a) <= lim) & (union_diameters(b, b) <= lim)
+    out[judged] = each & (union_diameters(a, b) > lim)
+    return out
+

@@ -15,7 +15,7 @@ from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.polygons import pairwise_ious_arrays
 from ltc_cli.pipeline.association import (
     footprint_gaps, ground_shares, half_diagonals, pairwise_containment, similar_volume, thresholds_for, too_wide,
-    unlike_heights,
+    too_long_together, unlike_heights,
 )
 from ltc_cli.pipeline.integration import PART_INSIDE_SHARE, shares_inside
 
@@ -304,7 +304,8 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                 part_volume: float | None = None,
                 adjoin_share: np.ndarray | None = None,
                 max_width: np.ndarray | None = None,
-                n_det: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                n_det: np.ndarray | None = None,
+                max_union: np.ndarray | None = None) -> list[tuple[float, int, int]]:
     """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
     association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
     inside the other by ``merge_containment``, default ``containment``), then one object under two
@@ -316,7 +317,9 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     ``adjoin_share`` (C+1,): pieces of one long object last (:func:`adjoining_part_pairs`; None: none).
     ``max_width`` (C+1,): as for duplicate_pairs (``container_max_width``); ``scores`` (M, C+1):
     the class vectors, for the labelled parts and for duplicate_pairs' ``merge_other_class_evidence``.
-    ``n_det`` (M,): detections so far, for ``defined_apart_detections`` (None: that rule stands down)."""
+    ``n_det`` (M,): detections so far, for ``defined_apart_detections`` (None: that rule stands down).
+    ``max_union`` (C+1,): no two objects of one class merge into a footprint longer than this
+    (:func:`~ltc_cli.pipeline.association.union_diameters`; None: any)."""
     overlap = a_cfg["containment"] is not None
     established = first_session < session if a_cfg["established_apart"] and first_session is not None \
         and session is not None else None
@@ -339,6 +342,11 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
         if overlap and defined is not None else []
     out = pairs + [(1e6 + k, a, b) for k, a, b in two_labels] + [(2e6 + g, a, b) for g, a, b in later] \
         + [(3e6 + k, a, b) for k, a, b in parts] + [(PIECES_KEY + g, a, b) for g, a, b in pieces]
+    if max_union is not None and out and np.isfinite(max_union[top]).any():
+        a, b = np.array([p[1] for p in out]), np.array([p[2] for p in out])
+        foot = boxes.corners[:, :4, :2]
+        long = (top[a] == top[b]) & too_long_together(foot[a], foot[b], max_union[top[a]])
+        out = [p for p, drop in zip(out, long) if not drop]
     if defined is None or a_cfg["other_class_height_ratio"] is None:
         return out
     return [(d, a, b) for d, a, b in out if top[a] == top[b] or not unlike_heights(

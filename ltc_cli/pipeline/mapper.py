@@ -20,7 +20,7 @@ from ltc_cli.map.model import ACTIVE, REMOVED, Event, GridIndex, SemanticMap, to
 from ltc_cli.pipeline.association import (
     ADJOIN_ELONGATED, adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps,
     half_diagonals, long_axis_turns, match_reach, nearest_under_threshold, seen_elsewhere, similar_volume,
-    size_caps, thresholds_for, unlike_heights, within_reach,
+    size_caps, thresholds_for, too_long_together, unlike_heights, within_reach,
 )
 from ltc_cli.pipeline.class_settings import ClassSettings
 from ltc_cli.pipeline.integration import enclosing_box, fuse_scores
@@ -250,6 +250,10 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
         unlike |= apart_labels(det, cand, other & ~unlike & (dist <= thr), a_cfg["other_class_min_overlap"])
         if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
             unlike |= self._seen_elsewhere(det, cand, ~unlike & (dist <= thr))
+        too_long = (cand_classes == det_class) & too_long_together(
+            np.broadcast_to(det.corners[:1, :4, :2], (len(rows), 4, 2)), cand.corners[:, :4, :2],
+            self.per_class.max_union[det_class])
+        unlike |= too_long
         best = nearest_under_threshold(dist, np.where(unlike, -1.0, thr))
         if best >= 0:
             return int(rows[best]), False
@@ -261,7 +265,7 @@ class Mapper(InstanceMerging, BoxIntegration, SessionPruning):
                                     a_cfg["containment_other_class"], comparable)
         if best < 0 and not det_defined:
             long_sides = np.maximum(det.size[0, :2].max(), cand.size[:, :2].max(axis=1))
-            pieces = ~t.defined[rows] if a_cfg["adjoin_same_frame"] else ~t.defined[rows] & ~this_frame
+            pieces = ~t.defined[rows] & ~too_long & (True if a_cfg["adjoin_same_frame"] else ~this_frame)
             if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
                 # Small things adjoin no piece the depth shows standing in its own box: pieces of a
                 # long object (a table end by end) stand in theirs too, but are not small.
