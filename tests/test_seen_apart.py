@@ -81,8 +81,10 @@ def test_standing_in_box_by_the_depth():
 def mapper_after_frame(overrides, frame_depth, objects):
     """A mapper (static policy) over a map of Defined "mouse" objects (center, size, n_det, vertices
     visible) after one
-    frame with no detections and ``frame_depth``: its depth is the one association and merges read."""
-    cfg = load_config(None, list(overrides))
+    frame with no detections and ``frame_depth``: its depth is the one association and merges read.
+    ``association.max_union_length`` is off: it would part the trackball and the controller by
+    their length alone, and these tests ask what the depth decides."""
+    cfg = load_config(None, ["association.max_union_length={}", *overrides])
     smap = SemanticMap.new(CLASSES)
     for center, size, n_det, visible in objects:
         smap.objects.append(center=np.array(center, float), yaw=0.0, size=np.array(size, float),
