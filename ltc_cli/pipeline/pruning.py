@@ -39,8 +39,8 @@ class SessionPruning:
         if m_cfg["confirm_across_sessions"] and len(rows):
             rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key)
         if m_cfg["confirm_across_views"] and min_views is not None and len(rows):
-            rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
-                                           apart=True)
+            rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index,
+                                           frame_key, apart=True)
         absent = m_cfg["absent_after_views"]
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
