@@ -3,7 +3,7 @@ objects stayed put, whether the map kept their ids, and whether maintenance dele
 were still there.
 
 Pure functions, no I/O. Ground-truth and map objects are anything with ``id``, ``cls``,
-``center (3,)``, ``yaw`` and ``size (3,)`` (e.g. :class:`ltc_cli.tools.evaluate.EvalObject`);
+``center (3,)``, ``yaw`` and ``size (3,)`` (e.g. :class:`ltc_cli.tools.eval_objects.EvalObject`);
 evaluation results are the dicts :func:`ltc_cli.tools.evaluate.evaluate` returns.
 
 Identity across laps is the ground truth's object id: the ground-truth format's ``changes`` lists
