@@ -16,7 +16,10 @@ rest: what both saw keeps its id, what only one saw stays), and one session at a
 frame rate (a detector at 10 Hz). On tum-fr1-rpy, every pass's map is also held to pairs of
 different things of one class that must stay two boxes (``APART``), and seven more passes
 (``LATER_PASSES``: other frame rates, offsets and directions) first run after the rules were set
-on the ones above say how the map holds on passes it was not tuned on.
+on the ones above say how the map holds on passes it was not tuned on. Its poses come from motion
+capture; three more pairs of sessions (``DRIFT_DRAWS``) put a robot localiser's drift on them (the
+realistic simulator's: 4 cm and 1.5 degrees), a draw for each session, as a robot revisiting the
+room would be off in another way each time.
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -46,7 +49,7 @@ from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
 from tests.real_truth import APART, COUNTS, TUM_FR1_RPY, check, merged_pairs  # noqa: E402
-from tests.replay import Reordered, Replay  # noqa: E402
+from tests.replay import Drifted, Reordered, Replay  # noqa: E402
 
 # ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
 SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
@@ -75,6 +78,8 @@ class BenchPlugin:
         register("second-half", Reordered(span=(0.5, 1.0)))
         for reader, kwargs in {r: kw for sessions in LATER_PASSES.values() for r, kw in sessions}.items():
             register(reader, Reordered(**kwargs))
+        for seed in {s for pair in DRIFT_DRAWS for s in pair}:
+            register(f"drift-{seed}", Drifted(seed, DRIFT_FRAMES))
 
 
 # Passes first run in the thirty-second round, after every rule of the earlier rounds was set on
@@ -174,6 +179,39 @@ def apart_line(name: str, maps: list) -> list[str]:
     out = [f"  things apart (tests/real_truth.py APART): {len(maps) * len(APART[name]) - sum(len(b) for _, b in bad)} "
            f"of {len(maps) * len(APART[name])} pairs in two boxes"]
     return out + [f"    {label}: {a} and {b} in one box ({oid})" for label, pairs in bad for a, b, oid in pairs]
+
+
+# Passes first run in the thirty-sixth round: the recording with a localiser's error on its poses
+# (the realistic simulator's drift, 4 cm and 1.5 degrees), as a robot's map gets them; tum-fr1-rpy's
+# poses come from motion capture. (session 1's draw, the revisit's draw) per pass; the error varies
+# over DRIFT_FRAMES frames (2 s at 30 Hz).
+DRIFT_DRAWS = ((1, 2), (3, 4), (5, 6))
+DRIFT_FRAMES = 60.0
+
+
+def drift_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None) -> list[tuple[str, Path]]:
+    """Run ``DRIFT_DRAWS`` on one recording: a session with one draw of the drift, then a revisit
+    with another; print each one's counts and kept ids; (label, map) per session."""
+    maps = []
+    print(f"  with a localiser's drift on the poses ({len(DRIFT_DRAWS)} draws, each a session and a revisit "
+          f"with another draw; tests/replay.py Drifted):")
+    for a, b in DRIFT_DRAWS:
+        m, m1 = tmp / f"{name}-drift-{a}-{b}.h5", tmp / f"{name}-drift-{a}.h5"
+        ingest([path], m1, load_config(None, sets), reader=f"drift-{a}")
+        first, ids1 = census(m1)
+        shutil.copyfile(m1, m)
+        ingest([path], m, load_config(None, sets), reader=f"drift-{b}", revisit=True)
+        second, ids2 = census(m)
+        print(f"    drift {a}: {sum(first.values())} objects ({verdict(name, first)}) -> revisit with drift {b}: "
+              f"{sum(second.values())} objects ({verdict(name, second)}), ids kept "
+              f"{len(ids1 & ids2) / max(len(ids1), 1):.0%}")
+        for line in lost_ids(m, ids1 - ids2):
+            print(f"      lost: {line}")
+        if keep:
+            shutil.copyfile(m1, Path(keep) / f"{name}-drift-{a}.h5")
+            shutil.copyfile(m, Path(keep) / f"{name}-drift-{a}-then-{b}.h5")
+        maps += [(f"drift {a}", m1), (f"drift {a}, revisit with drift {b}", m)]
+    return maps
 
 
 def later_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None) -> list[tuple[str, Path]]:
@@ -310,6 +348,9 @@ def main():
             if name in LANDMARKS:
                 later = later_passes(name, path, tmp, sets, args.keep)
                 for line in landmarks_line(name, later) + apart_line(name, later):
+                    print(line)
+                drift = drift_passes(name, path, tmp, sets, args.keep)
+                for line in landmarks_line(name, drift) + apart_line(name, drift):
                     print(line)
 
 

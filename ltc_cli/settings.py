@@ -85,6 +85,7 @@ class AssociationSettings(TypedDict):
     stand_centred: Optional[float]
     stand_within: Optional[float]
     stand_inside_parts: bool
+    stand_confirmed: bool
     merge_part_under: bool
     part_label_share: Optional[float]
     container_max_width: Optional[dict[str, float]]

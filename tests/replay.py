@@ -1,6 +1,7 @@
 """Plugins for passes over one real recording (tests/test_real_revisits.py and
-benchmarks/bench_real.py): the shared model detecting each frame once and replaying it, and a
-reader that drives a recording in reverse order, at a lower frame rate, or along part of it."""
+benchmarks/bench_real.py): the shared model detecting each frame once and replaying it, a reader
+that drives a recording in reverse order, at a lower frame rate, or along part of it, and one that
+puts a localiser's drift on its poses."""
 
 from __future__ import annotations
 
@@ -48,3 +49,43 @@ class Reordered:
         frames = list(rec.frames)[round(self.span[0] * n):round(self.span[1] * n)]
         frames = list(reversed(frames)) if self.reverse else frames
         return replace(rec, frames=frames[self.start::self.step])
+
+
+class Drifted:
+    """Any recording with a localiser's error on its poses: the realistic simulator's slow drift and
+    jitter (``ltc_cli.tools.simulate.drift.pose_errors``: 4 cm and 1.5 degrees, 5 mm and 0.2
+    degrees), drawn from ``seed`` with a correlation of ``frames`` frames. The images stay where
+    they were taken, as a robot's localiser reports a pose off the true one; the recording's world
+    is taken as z-up (tum-fr1-rpy's is within a few degrees), which is where the drift is largest
+    (x, y and the yaw)."""
+
+    def __init__(self, seed: int, frames: float = 60.0):
+        self.seed, self.frames = seed, frames
+
+    def sniff(self, path) -> bool:
+        return False
+
+    def open(self, path, options):
+        import numpy as np
+        from scipy.spatial.transform import Rotation
+
+        from ltc_cli.recordings.open import open_recording
+        from ltc_cli.tools.simulate.drift import pose_errors
+        from ltc_cli.tools.simulate.options import check_options
+
+        rec = open_recording(path)
+        opts = {**check_options({}, "realistic"), "drift_frames": self.frames}
+        d_pos, d_rot = pose_errors(np.random.default_rng(self.seed), len(rec.frames), opts)
+        R_err = Rotation.from_rotvec(d_rot).as_matrix()
+
+        def drifted(ref, k):
+            def load():
+                frame = ref.load()
+                T = frame.T_world_camera.copy()
+                T[:3, :3] = R_err[k] @ T[:3, :3]  # the camera turned about its own centre
+                T[:3, 3] += d_pos[k]
+                frame.T_world_camera = T
+                return frame
+            return replace(ref, load=load)
+
+        return replace(rec, frames=[drifted(ref, k) for k, ref in enumerate(rec.frames)])

@@ -361,3 +361,35 @@ def test_through_the_mapper_two_well_seen_monitors_of_one_session_stay_two(n_det
     mapper, res = empty_frame(smap, cfg, session=0)
     assert list(mapper.map.objects.status[:2]) == ([ACTIVE, ACTIVE] if apart else [ACTIVE, MERGED])
     assert res.merged == (0 if apart else 1)
+
+
+def test_a_tentative_object_takes_no_part():
+    """stand_pairs with tentative flags: the foot (1) under the screen (0) is its part unless the
+    screen, the larger one, is tentative; the foot's own state does not matter."""
+    rows = [0, 1]
+    for tentative, expected in (([False, False], [(0, 1)]), ([True, False], []),
+                                ([False, True], [(0, 1)]), ([True, True], [])):
+        pairs = stand_pairs(boxes(rows), TOP[rows], 0.05, 0.05, tentative=np.array(tentative))
+        assert [(a, b) for _, a, b in pairs] == expected, tentative
+
+
+@pytest.mark.parametrize("confirmed", [True, False])
+def test_through_the_mapper_a_one_detection_object_does_not_take_a_mouse(confirmed):
+    """Both objects made in this session (0): the larger one (the screen's box, here a phantom's)
+    detected once, so tentative under min_detections 2; the mouse under it detected 7 times. With
+    stand_confirmed the mouse stays a mouse; without it, it goes into the larger one as its foot.
+    With the larger one detected twice (no longer tentative) it does either way."""
+    for screen_det, merged in ((1, not confirmed), (2, True)):
+        cfg = defaults()
+        cfg["association"]["stand_gap"] = 0.05
+        cfg["association"]["stand_margin"] = 0.05
+        cfg["association"]["stand_confirmed"] = confirmed
+        assert cfg["maintenance"]["min_detections"] == 2
+        smap = SemanticMap.new(CLASSES)
+        for i, n_det in ((0, screen_det), (1, 7)):
+            smap.objects.append(center=np.array(CENTER[i], float), yaw=0.0, size=np.array(SIZE[i], float),
+                                visible=np.ones(8, bool), defined=True, scores=class_vector(TOP[i]), n_det=n_det,
+                                status=ACTIVE, first_session=0, last_session=0)
+        mapper, res = empty_frame(smap, cfg, session=0)
+        assert list(mapper.map.objects.status[:2]) == ([ACTIVE, MERGED] if merged else [ACTIVE, ACTIVE]), screen_det
+        assert res.merged == int(merged)

@@ -101,7 +101,8 @@ class InstanceMerging:
         pairs = stand_pairs(t.boxes(rows), top_class(t.scores[rows]), a_cfg["stand_gap"], a_cfg["stand_margin"],
                             established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None,
                             low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"],
-                            part_of=self.flags.taller_is if a_cfg["stand_inside_parts"] else None)
+                            part_of=self.flags.taller_is if a_cfg["stand_inside_parts"] else None,
+                            tentative=self._tentative(rows) if a_cfg["stand_confirmed"] else None)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
         for keep, drop in merges:
             keep, drop = int(rows[keep]), int(rows[drop])
@@ -113,6 +114,11 @@ class InstanceMerging:
             self._set_status(drop, MERGED)
             self._log(frame_index, frame_key, "merged", keep + 1, drop + 1)
         return len(merges)
+
+    def _tentative(self, rows: np.ndarray) -> np.ndarray:
+        """(M,) bool: :func:`~ltc_cli.pipeline.maintenance.tentative` for each row."""
+        t = self.map.objects
+        return (t.first_session[rows] == self.session) & (t.n_det[rows] < self.cfg["maintenance"]["min_detections"])
 
     def _merge_weights(self, older: int, newer: int) -> tuple[float, float]:
         t = self.map.objects
