@@ -136,6 +136,7 @@ class MaintenanceSettings(TypedDict):
     confirm_across_sessions: bool
     confirm_across_views: bool
     return_after_misses: bool
+    reidentify_margin: Optional[float]
     confirm_min_move: Optional[float]
     confirm_min_turn: Optional[float]
     tentative_until_end: bool

@@ -12,6 +12,7 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.camera import project, transform
 from ltc_cli.geometry.polygons import pairwise_ious_arrays
+from ltc_cli.pipeline.association import footprint_gaps
 from ltc_cli.pipeline.visibility import occupied_pixels, pixel_counts, visible_pixels
 from ltc_cli.types import Intrinsics
 
@@ -264,6 +265,35 @@ def same_class_overlap(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_to
     ok = (iou > 0.0) & (np.asarray(top)[:, None] == np.asarray(earlier_top)[None, :])
     best = np.where(ok, iou, -1.0).argmax(axis=1)
     return np.where(ok.any(axis=1), best, -1)
+
+
+def drifted_match(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np.ndarray, others: Boxes,
+                  others_top: np.ndarray, margin: float) -> np.ndarray:
+    """(K,) index into ``earlier`` of the object of the same top class whose footprint lies within
+    ``margin`` metres of that of each of K objects (``boxes``, ``top`` (K,)), the nearest, or -1;
+    also -1 where one of ``others`` of that class lies nearer still.
+
+    For ``maintenance.reidentify_margin``: ``boxes`` this session's confirmed new objects,
+    ``earlier`` the objects the absence rule is about to remove (seen clearly in this session and
+    never detected), ``others`` the rest of the active map. A robot's localiser is off by a few centimetres, in
+    another way on each drive: a thing a few centimetres wide that the second drive sees beside
+    the box the first gave it is a new box there, and its old box, seen empty where it stands, goes
+    (tum-fr1-rpy with a localiser's drift: a game controller 11 cm from its old box lost its id).
+    A thing detected in this session nearer to the new one is what it stands beside."""
+    out = np.full(len(boxes), -1, dtype=int)
+    if not len(boxes) or not len(earlier):
+        return out
+    for k in range(len(boxes)):
+        one = boxes.take(slice(k, k + 1))
+        gaps = np.where(np.asarray(earlier_top) == top[k], footprint_gaps(one, earlier), np.inf)
+        best = int(np.argmin(gaps))
+        if gaps[best] > margin:
+            continue
+        rivals = np.asarray(others_top) == top[k]
+        if rivals.any() and (footprint_gaps(one, others.take(np.flatnonzero(rivals))) < gaps[best]).any():
+            continue
+        out[k] = best
+    return out
 
 
 def found_again(first_session: np.ndarray, last_session: np.ndarray, last_frame: np.ndarray, session: int,

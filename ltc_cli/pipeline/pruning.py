@@ -9,8 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.map.model import ACTIVE, REMOVED, top_class
-from ltc_cli.pipeline.maintenance import absent_in_session, removed_unconfirmed, same_class_overlap, unconfirmed
-from ltc_cli.pipeline.reasons import absent_detail, removed_by_misses, returned_detail, unconfirmed_detail
+from ltc_cli.pipeline.maintenance import (
+    absent_in_session, drifted_match, removed_unconfirmed, same_class_overlap, unconfirmed,
+)
+from ltc_cli.pipeline.reasons import (
+    absent_detail, reidentified_detail, removed_by_misses, returned_detail, unconfirmed_detail,
+)
 from ltc_cli.pipeline.views import views_apart
 
 
@@ -41,16 +45,12 @@ class SessionPruning:
         if m_cfg["confirm_across_views"] and min_views is not None and len(rows):
             rows = self._confirmed_earlier(rows, seen_from, min_detections, min_share, min_views, frame_index,
                                            frame_key, apart=True)
-        absent = m_cfg["absent_after_views"]
+        if m_cfg["reidentify_margin"] is not None and getattr(self.policy, "removes", True):
+            self._reidentify(self._absent(), rows, m_cfg["reidentify_margin"], frame_index, frame_key)
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
-        if absent is not None and getattr(self.policy, "removes", True):
-            # Built-in things go by absent_quiet_sessions of silence only, never by one session's.
-            views = np.where(self.per_class.fixture[top_class(t.scores)], np.inf, absent)
-            old = np.flatnonzero(absent_in_session(
-                t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
-                views, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"] or absent,
-                t.through_since_det, m_cfg["absent_through_views"]))
+        if m_cfg["absent_after_views"] is not None and getattr(self.policy, "removes", True):
+            old = self._absent()
             for row in old:
                 self._remove(row, frame_index, frame_key, absent_detail(
                     t.clear_in_session[row], t.clear_since_det[row],
@@ -62,6 +62,20 @@ class SessionPruning:
                                             seen_from[row], min_views))
         self.rates.settle()
         return len(rows) + gone
+
+    def _absent(self) -> np.ndarray:
+        """Rows the absence rule removes at this session's end
+        (:func:`~ltc_cli.pipeline.maintenance.absent_in_session`); none when it is off."""
+        t, m_cfg = self.map.objects, self.cfg["maintenance"]
+        absent = m_cfg["absent_after_views"]
+        if absent is None:
+            return np.zeros(0, dtype=int)
+        # Built-in things go by absent_quiet_sessions of silence only, never by one session's.
+        views = np.where(self.per_class.fixture[top_class(t.scores)], np.inf, absent)
+        return np.flatnonzero(absent_in_session(
+            t.status == ACTIVE, t.first_session, t.last_session, t.clear_session, t.clear_in_session, self.session,
+            views, t.clear_since_det, m_cfg["absent_quiet_sessions"], m_cfg["absent_quiet_views"] or absent,
+            t.through_since_det, m_cfg["absent_through_views"]))
 
     def _return_missed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
         """Objects that non-detections removed in this session return, with their ids, where a new
@@ -109,6 +123,36 @@ class SessionPruning:
             t.cols["last_frame"][old] = t.last_frame[row]
             back += 1
         return back
+
+    def _reidentify(self, old, unconfirmed_rows, margin: float, frame_index: int, frame_key: str) -> int:
+        """An object the absence rule is about to remove (``old``: this session saw it clearly and
+        never detected it) takes, with its id, the confirmed new object of its class within
+        ``margin`` metres of its footprint (:func:`~ltc_cli.pipeline.maintenance.drifted_match`):
+        the new one merges into it and gives it its box, where this drive saw the thing. An object
+        the session's evidence keeps (a potted plant missed beside one carried next to it, in a
+        simulated house) is not the new one. Returns how many."""
+        t = self.map.objects
+        active = t.status == ACTIVE
+        new = np.setdiff1d(np.flatnonzero(active & (t.first_session == self.session)), unconfirmed_rows)
+        if not len(new) or not len(old):
+            return 0
+        new = new[np.argsort(-t.n_det[new], kind="stable")]  # the best evidence first
+        others = np.setdiff1d(np.flatnonzero(active), np.concatenate([old, new]))
+        top = top_class(t.scores)
+        match = drifted_match(t.boxes(new), top[new], t.boxes(old), top[old], t.boxes(others), top[others], margin)
+        done = 0
+        for row, k in zip(new, match):
+            if k < 0 or t.last_session[old[k]] == self.session:  # taken by a better-seen new one
+                continue
+            keep = int(old[k])
+            box = t.box(row)
+            self._log(frame_index, frame_key, "updated", keep + 1, detail=reidentified_detail(row + 1, t.n_det[row]))
+            self._absorb(keep, int(row), frame_index, frame_key)
+            t.set_box(keep, box)
+            self.index.insert(keep, box.center, box.size)
+            t.cols["last_frame"][keep] = t.last_frame[row]
+            done += 1
+        return done
 
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
                            apart: bool = False):

@@ -43,6 +43,13 @@ def returned_detail(new_id: int, n_det: int) -> str:
             f"{plural(int(n_det), 'detection')} of its class at its place, is it")
 
 
+def reidentified_detail(new_id: int, n_det: int) -> str:
+    """The event log's reason for re-identifying an object of an earlier session (starts
+    "re-identified:")."""
+    return (f"re-identified: not detected at its box in this session, and object {int(new_id)}, "
+            f"{plural(int(n_det), 'detection')} of its class just beside it, is it")
+
+
 def picture_detail(n_flat: int, n_det: int) -> str:
     """The event log's reason for a removal as a picture on a wall (starts "picture:")."""
     return (f"picture: {plural(int(n_flat), 'detection')} of it lay flat on the wall around "
