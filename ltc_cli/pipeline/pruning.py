@@ -114,15 +114,21 @@ class SessionPruning:
             s[-1] = 0.0
             t.cols["scores"][old] = s / s.sum() if s.sum() > 0 else t.scores[row]
             t.cols["status"][old] = ACTIVE
-            self._log(frame_index, frame_key, "updated", old + 1, detail=returned_detail(row + 1, t.n_det[row]))
-            box = t.box(row)
-            self._absorb(old, int(row), frame_index, frame_key)
             # Where the old box stood the misses saw through: the thing is in the box detected now.
-            t.set_box(old, box)
-            self.index.insert(old, box.center, box.size)
-            t.cols["last_frame"][old] = t.last_frame[row]
+            self._take_over(old, int(row), returned_detail(row + 1, t.n_det[row]), frame_index, frame_key)
             back += 1
         return back
+
+    def _take_over(self, old: int, new: int, detail: str, frame_index: int, frame_key: str) -> None:
+        """The new object merges into the old one, which keeps its id and takes the new one's box
+        (where this session saw the thing) and last frame; logged as an update with ``detail``."""
+        t = self.map.objects
+        self._log(frame_index, frame_key, "updated", old + 1, detail=detail)
+        box = t.box(new)
+        self._absorb(old, new, frame_index, frame_key)
+        t.set_box(old, box)
+        self.index.insert(old, box.center, box.size)
+        t.cols["last_frame"][old] = t.last_frame[new]
 
     def _reidentify(self, old, unconfirmed_rows, margin: float, frame_index: int, frame_key: str) -> int:
         """An object the absence rule is about to remove (``old``: this session saw it clearly and
@@ -144,13 +150,7 @@ class SessionPruning:
         for row, k in zip(new, match):
             if k < 0 or t.last_session[old[k]] == self.session:  # taken by a better-seen new one
                 continue
-            keep = int(old[k])
-            box = t.box(row)
-            self._log(frame_index, frame_key, "updated", keep + 1, detail=reidentified_detail(row + 1, t.n_det[row]))
-            self._absorb(keep, int(row), frame_index, frame_key)
-            t.set_box(keep, box)
-            self.index.insert(keep, box.center, box.size)
-            t.cols["last_frame"][keep] = t.last_frame[row]
+            self._take_over(int(old[k]), int(row), reidentified_detail(row + 1, t.n_det[row]), frame_index, frame_key)
             done += 1
         return done
 
