@@ -80,6 +80,7 @@ class AssociationSettings(TypedDict):
     defined_apart_detections: Optional[int]
     labels_apart: bool
     tentative_reshapes: bool
+    one_view_reshapes: bool
     stand_margin: float
     stand_low: Optional[float]
     stand_centred: Optional[float]

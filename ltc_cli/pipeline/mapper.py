@@ -268,13 +268,14 @@ class Mapper(DetectionAssociation, InstanceMerging, BoxIntegration, SessionPruni
         cols["clear_since_det"][row] = 0
         cols["through_since_det"][row] = 0
 
-    def _confirm_views(self) -> np.ndarray:
-        """(N,) distinct views of detection per object for min_detection_views: by the span of the
-        views (order-free) when two are asked for, else as counted one after another."""
+    def _confirm_views(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """(N,) distinct views of detection per object (or (M,) for ``rows``) for min_detection_views:
+        by the span of the views (order-free) when two are asked for, else as counted one after another."""
         t, m_cfg = self.map.objects, self.cfg["maintenance"]
+        rows = slice(None) if rows is None else rows
         if m_cfg["min_detection_views"] is None or m_cfg["min_detection_views"] > 2:
-            return t.det_views
-        return span_views(t.det_span, t.det_views, m_cfg["confirm_min_move"], m_cfg["confirm_min_turn"])
+            return t.det_views[rows]
+        return span_views(t.det_span[rows], t.det_views[rows], m_cfg["confirm_min_move"], m_cfg["confirm_min_turn"])
 
     def _count_view(self, row: int) -> None:
         """A detection of ``row`` from a new view (confirm_min_move / confirm_min_turn since the

@@ -14,7 +14,8 @@ from ltc_cli.pipeline.association import footprint_gaps, match_reach, seen_elsew
 from ltc_cli.pipeline.deduplication import PIECES_KEY, enclosed_part, greedy_merges, label_survivor, merge_pairs
 from ltc_cli.pipeline.frame_modeling import not_whole
 from ltc_cli.pipeline.integration import (
-    confirmed_side, enclosing_box, label_weight, merge_objects, merged_box, merged_scores, stale_side,
+    confirmed_side, enclosing_box, label_weight, merge_objects, merged_box, merged_scores, one_view_claims,
+    stale_side,
 )
 from ltc_cli.pipeline.maintenance import tentative
 from ltc_cli.pipeline.views import union_span
@@ -153,20 +154,35 @@ class InstanceMerging:
         top = int(top_class(t.scores[older]))
         if int(top_class(t.scores[newer])) == top:
             box = self._outgrown(b_new, b_old, w_new, w_old, top, (older, newer), box)
-        # A whole box: the confirmed one's against a tentative label (tentative_reshapes false),
-        # else the one detected now (merge_current_box); the size rule for foreign boxes holds
-        # only when neither chose.
+        # A whole box: the confirmed one's against a tentative label (tentative_reshapes false) or a
+        # one-view claim (one_view_reshapes false), else the one detected now (merge_current_box);
+        # the size rule for foreign boxes holds only when neither chose.
         confirmed = None
-        if not self.cfg["association"]["tentative_reshapes"]:
-            need = self.cfg["maintenance"]["min_detections"]
-            confirmed = confirmed_side(int(top_class(t.scores[older])), int(top_class(t.scores[newer])),
-                                       *(tentative(int(t.first_session[r]), int(t.n_det[r]), self.session, need)
-                                         for r in (older, newer)))
+        weak = self._weak_claims(older, newer)
+        if weak is not None:
+            confirmed = confirmed_side(int(top_class(t.scores[older])), int(top_class(t.scores[newer])), *weak)
         side = {"older": "keep", "newer": "drop"}.get(confirmed)
         if side is None and self.cfg["association"]["merge_current_box"]:
             side = stale_side(t.last_session[older] == self.session, t.last_session[newer] == self.session)
         foreign = confirmed is None and self._foreign(t.scores[newer], t.scores[older], b_new, b_old)
         return merged_box(box, b_old, b_new, side, foreign), scores
+
+    def _weak_claims(self, older: int, newer: int) -> tuple[bool, bool] | None:
+        """(older, newer): whether each one's box is too weak a claim to reshape the other's in a
+        merge (:func:`confirmed_side`): tentative (unless tentative_reshapes), or a one-view claim
+        (:func:`one_view_claims`, unless one_view_reshapes); None when both settings are true."""
+        t, a_cfg, m_cfg = self.map.objects, self.cfg["association"], self.cfg["maintenance"]
+        if a_cfg["tentative_reshapes"] and a_cfg["one_view_reshapes"]:
+            return None
+        rows = np.array([older, newer])
+        weak = np.zeros(2, dtype=bool)
+        if not a_cfg["tentative_reshapes"]:
+            weak |= [tentative(int(t.first_session[r]), int(t.n_det[r]), self.session, m_cfg["min_detections"])
+                     for r in rows]
+        if not a_cfg["one_view_reshapes"]:
+            weak |= one_view_claims(t.first_session[rows] == self.session, self._confirm_views(rows),
+                                    m_cfg["min_detection_views"], t.n_det[rows], np.prod(t.size[rows], axis=1))
+        return bool(weak[0]), bool(weak[1])
 
     def _survivor(self, rows: np.ndarray, a: int, b: int) -> int:
         """Which of rows[a] (older) and rows[b] (newer), about to merge, keeps its id (a or b)."""
