@@ -301,3 +301,23 @@ def test_a_one_view_chair_does_not_take_the_monitor_behind_into_the_front_one(se
     ingest([DATA], m, load_config(None, cfg), reader="drift-5")
     wrong = [lm.name for lm, ok, _ in check(load_map(m)) if not ok]
     assert wrong == (["monitor behind the front one, its back"] if reshapes else [])
+
+
+@pytest.mark.parametrize("min_iou", [0.1, None])
+def test_a_drifted_copy_of_a_mouse_joins_its_first_box(session, tmp_path, min_iou):
+    """Drive 5, then the revisit with draw 6 (tests/replay.py Drifted): the revisit sees the
+    trackball 9 cm from its first box and makes a new "mouse" there, overlapping it (XY IoU 0.18).
+    With ``maintenance.earlier_overlap_iou`` the new one joins the first box at the session's end
+    (one "joined" event) and the revisit counts 5 mice; without it, 6 (docs/decisions.md,
+    thirty-seventh round). Every id stays either way."""
+    m = tmp_path / "map.h5"
+    cfg = ["detector.name=cached-yolo", f"detector.options.model={MODEL}",
+           f"maintenance.earlier_overlap_iou={'null' if min_iou is None else min_iou}"]
+    ingest([DATA], m, load_config(None, cfg), reader="drift-5")
+    _, ids1 = census(m)
+    ingest([DATA], m, load_config(None, cfg), reader="drift-6", revisit=True)
+    counts, ids2 = census(m)
+    assert ids1 <= ids2
+    joined = [e for e in load_map(m).events if e.session == 1 and e.detail.startswith("joined")]
+    assert counts["mouse"] == (5 if min_iou else 6)
+    assert len(joined) == (1 if min_iou else 0)

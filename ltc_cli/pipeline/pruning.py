@@ -10,10 +10,10 @@ import numpy as np
 
 from ltc_cli.map.model import ACTIVE, REMOVED, top_class
 from ltc_cli.pipeline.maintenance import (
-    absent_in_session, drifted_match, removed_unconfirmed, same_class_overlap, unconfirmed,
+    absent_in_session, drifted_match, earlier_duplicates, removed_unconfirmed, same_class_overlap, unconfirmed,
 )
 from ltc_cli.pipeline.reasons import (
-    absent_detail, reidentified_detail, removed_by_misses, returned_detail, unconfirmed_detail,
+    absent_detail, joined_detail, reidentified_detail, removed_by_misses, returned_detail, unconfirmed_detail,
 )
 from ltc_cli.pipeline.views import views_apart
 
@@ -47,6 +47,8 @@ class SessionPruning:
                                            frame_key, apart=True)
         if m_cfg["reidentify_margin"] is not None and getattr(self.policy, "removes", True):
             self._reidentify(self._absent(), rows, m_cfg["reidentify_margin"], frame_index, frame_key)
+        if m_cfg["earlier_overlap_iou"] is not None:
+            self._join_earlier(rows, m_cfg["earlier_overlap_iou"], frame_index, frame_key)
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if m_cfg["absent_after_views"] is not None and getattr(self.policy, "removes", True):
@@ -153,6 +155,27 @@ class SessionPruning:
             self._take_over(int(old[k]), int(row), reidentified_detail(row + 1, t.n_det[row]), frame_index, frame_key)
             done += 1
         return done
+
+    def _join_earlier(self, unconfirmed_rows, min_iou: float, frame_index: int, frame_key: str) -> int:
+        """Each confirmed new object whose footprint overlaps an active object of an earlier session
+        of its class by ``min_iou`` (:func:`~ltc_cli.pipeline.maintenance.earlier_duplicates`) merges
+        into it: the earlier one keeps its id and its box (the map's reference for the thing; the
+        new box is this drive's drifted copy) and takes the new one's detections and class
+        evidence. Returns how many."""
+        t = self.map.objects
+        active = t.status == ACTIVE
+        new = np.setdiff1d(np.flatnonzero(active & (t.first_session == self.session)), unconfirmed_rows)
+        old = np.flatnonzero(active & (t.first_session < self.session))
+        top = top_class(t.scores)
+        pairs = earlier_duplicates(t.boxes(new), top[new], t.boxes(old), top[old], min_iou)
+        for k, j, iou in pairs:
+            keep, drop = int(old[j]), int(new[k])
+            self._log(frame_index, frame_key, "updated", keep + 1, detail=joined_detail(drop + 1, t.n_det[drop], iou))
+            box = t.box(keep)
+            self._absorb(keep, drop, frame_index, frame_key)
+            t.set_box(keep, box)
+            self.index.insert(keep, box.center, box.size)
+        return len(pairs)
 
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
                            apart: bool = False):

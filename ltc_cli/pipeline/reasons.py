@@ -50,6 +50,13 @@ def reidentified_detail(new_id: int, n_det: int) -> str:
             f"{plural(int(n_det), 'detection')} of its class just beside it, is it")
 
 
+def joined_detail(new_id: int, n_det: int, iou: float) -> str:
+    """The event log's reason for an earlier session's object taking a new one of its class that
+    overlaps it (starts "joined:")."""
+    return (f"joined: object {int(new_id)} of this session, {plural(int(n_det), 'detection')} of its class, "
+            f"overlaps its box (XY IoU {iou:.2f}) and is it")
+
+
 def picture_detail(n_flat: int, n_det: int) -> str:
     """The event log's reason for a removal as a picture on a wall (starts "picture:")."""
     return (f"picture: {plural(int(n_flat), 'detection')} of it lay flat on the wall around "
