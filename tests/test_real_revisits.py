@@ -264,9 +264,10 @@ def test_a_revisit_off_in_another_way_keeps_the_controllers_id(session, tmp_path
     it: a new box there, and the old one, seen empty, goes by the absence rule. With
     ``maintenance.reidentify_margin`` the old id takes the new box and every id stays; without it
     (the thirty-fifth round) one id is lost, the controller's (docs/decisions.md, thirty-sixth
-    round)."""
+    round). ``maintenance.earlier_overlap_iou`` (thirty-seventh round) keeps that id too, where the
+    new box overlaps the old one, so it is off in the pass without the margin."""
     m = tmp_path / "map.h5"
-    extra = [] if margin is not None else ["maintenance.reidentify_margin=null"]
+    extra = [] if margin is not None else ["maintenance.reidentify_margin=null", "maintenance.earlier_overlap_iou=null"]
     cfg = ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *extra]
     ingest([DATA], m, load_config(None, cfg), reader="drift-5")
     _, ids1 = census(m)
