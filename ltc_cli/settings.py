@@ -85,6 +85,7 @@ class AssociationSettings(TypedDict):
     stand_low: Optional[float]
     stand_centred: Optional[float]
     stand_within: Optional[float]
+    stand_within_floor: Optional[float]
     stand_inside_parts: bool
     stand_confirmed: bool
     merge_part_under: bool

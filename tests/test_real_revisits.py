@@ -9,6 +9,7 @@ sessions 70 % and the four-session mix 92 %). Skipped when ../shared is absent.
 The detector runs once per frame; later passes replay its detections (it is deterministic).
 """
 
+import shutil
 from collections import Counter
 from pathlib import Path
 
@@ -257,68 +258,81 @@ def test_every_third_frame_then_the_frames_between_leaves_no_mouse_on_a_foot(ses
     assert wrong == []
 
 
-@pytest.mark.parametrize("margin", [0.08, None])
-def test_a_revisit_off_in_another_way_keeps_the_controllers_id(session, tmp_path, margin):
-    """With a localiser's drift on the poses (tests/replay.py Drifted, draws 5 and 6 of
-    bench_real.py), the revisit sees the game controller 11 cm from the box the first drive gave
-    it: a new box there, and the old one, seen empty, goes by the absence rule. With
-    ``maintenance.reidentify_margin`` the old id takes the new box and every id stays; without it
-    (the thirty-fifth round) one id is lost, the controller's (docs/decisions.md, thirty-sixth
-    round). ``maintenance.earlier_overlap_iou`` (thirty-seventh round) keeps that id too, where the
-    new box overlaps the old one, so it is off in the pass without the margin."""
+@pytest.fixture(scope="module")
+def drive_5_then_6(session, tmp_path_factory):
+    """Drive 5, then the revisit with draw 6 (tests/replay.py Drifted), at the defaults: (the map
+    after drive 5, the map after the revisit, ids after each). Shared by the tests below."""
+    d = tmp_path_factory.mktemp("drive-5-then-6")
+    first, m = d / "drive-5.h5", d / "map.h5"
+    _, ids1 = session("drift-5", m)
+    shutil.copyfile(m, first)
+    _, ids2 = session("drift-6", m, revisit=True)
+    return first, m, ids1, ids2
+
+
+def drive(reader_overrides, tmp_path, revisit: bool = True):
+    """Drive 5 (and, with ``revisit``, the revisit with draw 6) with config overrides: (map, ids
+    after drive 5, ids at the end)."""
     m = tmp_path / "map.h5"
-    extra = [] if margin is not None else ["maintenance.reidentify_margin=null", "maintenance.earlier_overlap_iou=null"]
-    cfg = ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *extra]
-    ingest([DATA], m, load_config(None, cfg), reader="drift-5")
+    cfg = load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *reader_overrides])
+    ingest([DATA], m, cfg, reader="drift-5")
     _, ids1 = census(m)
-    ingest([DATA], m, load_config(None, cfg), reader="drift-6", revisit=True)
-    _, ids2 = census(m)
+    if revisit:
+        ingest([DATA], m, cfg, reader="drift-6", revisit=True)
+    return m, ids1, census(m)[1]
+
+
+def test_a_revisit_off_in_another_way_keeps_the_controllers_id(drive_5_then_6):
+    """With a localiser's drift on the poses (draws 5 and 6 of bench_real.py), the revisit sees the
+    game controller 11 cm from the box the first drive gave it: a new box there, and the old one,
+    seen empty, goes by the absence rule. With ``maintenance.reidentify_margin`` the old id takes
+    the new box and every id stays (docs/decisions.md, thirty-sixth round)."""
+    _, m, ids1, ids2 = drive_5_then_6
+    assert sorted(ids1 - ids2) == []
+    assert any(e.detail.startswith("re-identified") for e in load_map(m).events if e.session == 1)
+
+
+def test_without_reidentification_the_controllers_id_is_lost(tmp_path, session):
+    """The same drives without ``reidentify_margin`` (the thirty-fifth round) lose one id, a
+    "mouse" on the game controller. ``maintenance.earlier_overlap_iou`` (thirty-seventh round)
+    keeps that id too, where the new box overlaps the old one, so it is off here as well."""
+    m, ids1, ids2 = drive(["maintenance.reidentify_margin=null", "maintenance.earlier_overlap_iou=null"], tmp_path)
     lost = sorted(ids1 - ids2)
-    if margin is None:
-        assert len(lost) == 1
-        smap = load_map(m)
-        row = lost[0] - 1
-        assert smap.classes[int(top_class(smap.objects.scores[row]))] == "mouse"
-        controller = next(lm for lm in TUM_FR1_RPY if lm.name == "game controller by the papers")
-        gap = box_gaps(np.asarray(smap.up_rotation) @ np.asarray(controller.world_xyz), smap.objects.center[[row]],
-                       smap.objects.yaw[[row]], smap.objects.size[[row]])[0]
-        assert gap < 0.1
-    else:
-        assert lost == []
-        assert any(e.detail.startswith("re-identified") for e in load_map(m).events if e.session == 1)
+    assert len(lost) == 1
+    smap = load_map(m)
+    row = lost[0] - 1
+    assert smap.classes[int(top_class(smap.objects.scores[row]))] == "mouse"
+    controller = next(lm for lm in TUM_FR1_RPY if lm.name == "game controller by the papers")
+    gap = box_gaps(np.asarray(smap.up_rotation) @ np.asarray(controller.world_xyz), smap.objects.center[[row]],
+                   smap.objects.yaw[[row]], smap.objects.size[[row]])[0]
+    assert gap < 0.1
 
 
 @pytest.mark.parametrize("reshapes", [False, True])
-def test_a_one_view_chair_does_not_take_the_monitor_behind_into_the_front_one(session, tmp_path, reshapes):
-    """One session with a localiser's drift (draw 5): four detections from one view call the desk
-    behind the front monitor a 1.22 m "chair". With ``association.one_view_reshapes`` false the
-    monitor behind the front one keeps its own box when that chair merges into it, and every place
-    measured by hand holds; with it true (the paper) the monitor takes the chair's box, which then
-    merges into the front monitor, and the monitor behind it is the one place lost
-    (docs/decisions.md, thirty-seventh round)."""
-    m = tmp_path / "map.h5"
-    cfg = ["detector.name=cached-yolo", f"detector.options.model={MODEL}",
-           f"association.one_view_reshapes={str(reshapes).lower()}"]
-    ingest([DATA], m, load_config(None, cfg), reader="drift-5")
+def test_a_one_view_chair_does_not_take_the_monitor_behind_into_the_front_one(drive_5_then_6, tmp_path, reshapes):
+    """Drive 5 alone: four detections from one view call the desk behind the front monitor a 1.22 m
+    "chair". With ``association.one_view_reshapes`` false the monitor behind the front one keeps
+    its own box when that chair merges into it, and every place measured by hand holds; with it
+    true (the paper) the monitor takes the chair's box, which then merges into the front monitor,
+    and the monitor behind it is the one place lost (docs/decisions.md, thirty-seventh round)."""
+    m = drive_5_then_6[0] if not reshapes else drive(["association.one_view_reshapes=true"], tmp_path, False)[0]
     wrong = [lm.name for lm, ok, _ in check(load_map(m)) if not ok]
     assert wrong == (["monitor behind the front one, its back"] if reshapes else [])
 
 
 @pytest.mark.parametrize("min_iou", [0.1, None])
-def test_a_drifted_copy_of_a_mouse_joins_its_first_box(session, tmp_path, min_iou):
-    """Drive 5, then the revisit with draw 6 (tests/replay.py Drifted): the revisit sees the
-    trackball 9 cm from its first box and makes a new "mouse" there, overlapping it (XY IoU 0.18).
-    With ``maintenance.earlier_overlap_iou`` the new one joins the first box at the session's end
-    (one "joined" event) and the revisit counts 5 mice; without it, 6 (docs/decisions.md,
-    thirty-seventh round). Every id stays either way."""
-    m = tmp_path / "map.h5"
-    cfg = ["detector.name=cached-yolo", f"detector.options.model={MODEL}",
-           f"maintenance.earlier_overlap_iou={'null' if min_iou is None else min_iou}"]
-    ingest([DATA], m, load_config(None, cfg), reader="drift-5")
-    _, ids1 = census(m)
-    ingest([DATA], m, load_config(None, cfg), reader="drift-6", revisit=True)
-    counts, ids2 = census(m)
+def test_a_drifted_copy_of_a_mouse_joins_its_first_box(drive_5_then_6, tmp_path, min_iou):
+    """The revisit sees the trackball 9 cm from its first box and makes a new "mouse" there,
+    overlapping it (XY IoU 0.18). With ``maintenance.earlier_overlap_iou`` the new one joins the
+    first box at the session's end (one "joined" event) and the revisit counts 4 mice; without it,
+    5 (docs/decisions.md, thirty-seventh round). Every id stays either way."""
+    if min_iou:
+        _, m, ids1, ids2 = drive_5_then_6
+    else:
+        m, ids1, ids2 = drive(["maintenance.earlier_overlap_iou=null"], tmp_path)
     assert ids1 <= ids2
+    counts = census(m)[0]
     joined = [e for e in load_map(m).events if e.session == 1 and e.detail.startswith("joined")]
-    assert counts["mouse"] == (5 if min_iou else 6)
+    assert counts["mouse"] == (4 if min_iou else 5)
     assert len(joined) == (1 if min_iou else 0)
+

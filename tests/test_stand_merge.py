@@ -393,3 +393,35 @@ def test_through_the_mapper_a_one_detection_object_does_not_take_a_mouse(confirm
         mapper, res = empty_frame(smap, cfg, session=0)
         assert list(mapper.map.objects.status[:2]) == ([ACTIVE, MERGED] if merged else [ACTIVE, ACTIVE]), screen_det
         assert res.merged == int(merged)
+
+
+def test_a_foot_plate_out_in_front_of_a_thin_screen_is_its_foot():
+    """stand_within_floor (thirty-seventh round): a screen box 0.5 m long (along x) and 0.14 m deep
+    (x 1.75..2.25, y -0.07..0.07, z 0.82..1.22) and a foot plate 0.25 x 0.11 x 0.05 m (z 0.75..0.80,
+    its top 0.02 under the screen) whose centre stands 0.10 m in front of the screen's middle (y
+    0.10): 0.10 / 0.14 = 0.71 of the depth, over stand_within's 0.5 (0.07 m), under a floor of 0.12
+    m. Half of its footprint lies under the screen grown by 0.1 per side (y up to 0.17: all of
+    it). At 0.13 m in front the floor does not take it either."""
+    def pairs(y, floor):
+        b = Boxes(np.array([[2.0, 0.0, 1.02], [2.0, y, 0.775]]), np.zeros(2),
+                  np.array([[0.5, 0.14, 0.4], [0.25, 0.11, 0.05]]), np.ones((2, 8), bool))
+        return [(a, c) for _, a, c in stand_pairs(b, np.array([TV, MOUSE]), 0.08, 0.1, low=0.3, within=0.5,
+                                                  within_floor=floor)]
+
+    assert pairs(0.10, 0.0) == []
+    assert pairs(0.10, 0.12) == [(0, 1)]
+    assert pairs(0.13, 0.12) == []
+    assert pairs(0.06, 0.0) == [(0, 1)]  # 0.43 of the depth: the share alone
+
+
+def test_centred_under_with_a_floor_by_hand():
+    """Box 1 0.5 x 0.14 at the origin (yaw 0). A centre 0.10 m along y: 0.71 of its width, over 0.5,
+    under a floor of 0.12 m; the floor says nothing along the length (0.3 m along x: 0.6 > 0.5)."""
+    def under(xy, floor):
+        b = Boxes(np.array([[xy[0], xy[1], 0.05], [0.0, 0.0, 0.2]]), np.zeros(2),
+                  np.array([[0.05, 0.05, 0.1], [0.5, 0.14, 0.4]]), np.ones((2, 8), bool))
+        return bool(centred_under(b, 0.5, 0.5, floor)[0, 1])
+
+    assert not under((0.0, 0.10), 0.0)
+    assert under((0.0, 0.10), 0.12)
+    assert not under((0.3, 0.0), 0.12)

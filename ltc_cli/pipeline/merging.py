@@ -87,7 +87,8 @@ class InstanceMerging:
             return set()
         idx = np.array(sorted({r for p in same for r in p}))
         under = stand_pairs(t.boxes(rows[idx]), np.arange(idx.size), a_cfg["stand_gap"], a_cfg["stand_margin"],
-                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"])
+                            low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"],
+                            within_floor=a_cfg["stand_within_floor"] or 0.0)
         return same & {(int(idx[i]), int(idx[j])) for _, i, j in under}
 
     def _merge_stands(self, rows: np.ndarray, frame_index, frame_key) -> int:
@@ -103,7 +104,8 @@ class InstanceMerging:
                             established=t.first_session[rows] < self.session if a_cfg["established_apart"] else None,
                             low=a_cfg["stand_low"], centred=a_cfg["stand_centred"], within=a_cfg["stand_within"],
                             part_of=self.flags.taller_is if a_cfg["stand_inside_parts"] else None,
-                            tentative=self._tentative(rows) if a_cfg["stand_confirmed"] else None)
+                            tentative=self._tentative(rows) if a_cfg["stand_confirmed"] else None,
+                            within_floor=a_cfg["stand_within_floor"] or 0.0)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: a if vol[a] > vol[b] else b)
         for keep, drop in merges:
             keep, drop = int(rows[keep]), int(rows[drop])
