@@ -287,7 +287,8 @@ def one_view_claims(made_now: np.ndarray, views: np.ndarray, min_views: int | No
     With a localiser's drift on tum-fr1-rpy's poses (benchmarks/bench_real.py) a "chair" 1.22 m
     tall, four detections from one view over the desk behind the front monitor, merged with the
     monitor behind it (6-21 detections) and gave it its box; the grown box then merged into the
-    front monitor, and the monitor behind it was gone from 4 of 12 drifted sessions (one id lost).
+    front monitor, and the monitor behind it was gone from 3 of the 6 drifted sessions with either
+    model (drive 1's revisit lost its id).
     A merged box from two objects detected alike (two detections each: a chair's views on an oven
     in a simulated house) stays the merge's."""
     if min_views is None:
