@@ -38,8 +38,9 @@ def test_earlier_duplicates_by_hand():
 
 def session_end(min_iou=0.1, new_x=0.05, new_class=MOUSE, new_det=5):
     """Session 1's end: row 0 a mouse made in session 0 (8 detections) at x 0, 0.1 x 0.1 x 0.05 m,
-    detected in session 1 too (the absence rule keeps it); row 1 made in session 1 at ``new_x``,
-    the same size (``new_det`` detections from 2 views in 10 clear frames)."""
+    detected in session 1 too, last at frame 30 (the absence rule keeps it); row 1 made in session 1
+    at ``new_x``, the same size (``new_det`` detections from 2 views in 10 clear frames, the last at
+    frame 35)."""
     cfg = defaults()
     cfg["maintenance"]["earlier_overlap_iou"] = min_iou
     smap = SemanticMap.new(CLASSES)
@@ -49,7 +50,7 @@ def session_end(min_iou=0.1, new_x=0.05, new_class=MOUSE, new_det=5):
         v[cls], v[-1] = 0.9, 0.0
         t.append(center=np.array([x, 0.0, 0.75]), yaw=0.0, size=np.array([0.1, 0.1, 0.05]), scores=v, n_det=n_det,
                  n_clear=10, det_views=2, status=ACTIVE, first_session=session, first_frame=20 * session,
-                 last_session=1, last_frame=30, clear_session=2, clear_in_session=10)
+                 last_session=1, last_frame=30 + 5 * session, clear_session=2, clear_in_session=10)
     mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
                     plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
     m = cfg["maintenance"]
@@ -63,7 +64,8 @@ def test_the_earlier_object_takes_the_new_one_and_keeps_its_box():
     assert (t.status[0], t.status[1]) == (ACTIVE, MERGED)
     np.testing.assert_allclose(t.center[0], [0.0, 0.0, 0.75])
     np.testing.assert_allclose(t.size[0], [0.1, 0.1, 0.05])
-    assert (t.n_det[0], t.first_session[0]) == (13, 0)
+    # Last detected at the new one's last frame (35), not at the session's end (-1).
+    assert (t.n_det[0], t.first_session[0], t.last_session[0], t.last_frame[0]) == (13, 0, 1, 35)
     kinds = [(e.kind, e.object_id, e.other_id) for e in smap.events if e.session == 1 and e.frame == -1]
     assert kinds == [("updated", 1, 0), ("merged", 1, 2)]
     assert next(e.detail for e in smap.events if e.kind == "updated") == (

@@ -175,6 +175,7 @@ class SessionPruning:
             self._absorb(keep, drop, frame_index, frame_key)
             t.set_box(keep, box)
             self.index.insert(keep, box.center, box.size)
+            t.cols["last_frame"][keep] = t.last_frame[drop]  # not the session's end, as _take_over
         return len(pairs)
 
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
