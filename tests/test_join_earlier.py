@@ -6,12 +6,11 @@ Expected values by hand."""
 import numpy as np
 import pytest
 
-from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
 from ltc_cli.pipeline.maintenance import earlier_duplicates
-from ltc_cli.pipeline.mapper import Mapper
 from tests.test_reidentify import CLASSES, CUP, MOUSE, row_boxes
+from tests.session_end import end_session
 
 
 def test_earlier_duplicates_by_hand():
@@ -51,11 +50,7 @@ def session_end(min_iou=0.1, new_x=0.05, new_class=MOUSE, new_det=5):
         t.append(center=np.array([x, 0.0, 0.75]), yaw=0.0, size=np.array([0.1, 0.1, 0.05]), scores=v, n_det=n_det,
                  n_clear=10, det_views=2, status=ACTIVE, first_session=session, first_frame=20 * session,
                  last_session=1, last_frame=30 + 5 * session, clear_session=2, clear_in_session=10)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
-    m = cfg["maintenance"]
-    mapper.prune_unconfirmed(m["min_detections"], -1, "end of session", m["min_detection_share"])
-    return smap
+    return end_session(smap, cfg)
 
 
 def test_the_earlier_object_takes_the_new_one_and_keeps_its_box():

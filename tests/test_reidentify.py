@@ -6,12 +6,11 @@ Expected values by hand."""
 import numpy as np
 import pytest
 
-from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
 from ltc_cli.pipeline.maintenance import drifted_match
-from ltc_cli.pipeline.mapper import Mapper
+from tests.session_end import end_session
 CLASSES = ["mouse", "cup", "keyboard"]
 MOUSE, CUP = 0, 1
 
@@ -59,11 +58,7 @@ def session_end(margin=0.08, new_x=0.15, old_seen=True, old_detected=False, new_
     t.append(center=np.array([new_x, 0.0, 0.75]), yaw=0.0, size=np.array([0.1, 0.12, 0.06]), scores=v,
              n_det=new_det, n_clear=10, det_views=2, status=ACTIVE, first_session=1, first_frame=20,
              last_session=1, last_frame=30)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
-    m = cfg["maintenance"]
-    mapper.prune_unconfirmed(m["min_detections"], -1, "end of session", m["min_detection_share"])
-    return smap
+    return end_session(smap, cfg)
 
 
 def test_the_old_object_takes_the_new_one_with_its_id():

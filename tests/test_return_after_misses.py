@@ -12,6 +12,7 @@ from ltc_cli.pipeline.mapper import Mapper
 from ltc_cli.pipeline.reasons import absent_detail, other_leads_detail, removed_by_misses
 from tests.scene import INTR, T_world_camera, render
 from tests.test_identity import CHAIR_BOX, CHAIR_FACE, CLASSES, chair_vector
+from tests.session_end import end_session
 
 # The chair the misses removed: chair 0.3, the nine other classes 0.1 / 9 each, other 0.6.
 OLD_SCORES = np.r_[0.3, np.full(9, 0.1 / 9), 0.6]
@@ -36,11 +37,7 @@ def session_end(rule=True, new_class=0, new_det=3, new_x=2.3, removed_in=1, how=
     new_scores = chair_vector(0.9) if new_class == 0 else np.roll(chair_vector(0.9), 1)
     t.append(center=np.array([new_x, 0.05, 0.6]), yaw=0.0, size=np.array([0.5, 0.6, 0.9]), scores=new_scores,
              n_det=new_det, status=ACTIVE, first_session=1, first_frame=20, last_session=1, last_frame=30)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
-    m = cfg["maintenance"]
-    mapper.prune_unconfirmed(m["min_detections"], -1, "end of session", m["min_detection_share"])
-    return smap
+    return end_session(smap, cfg)
 
 
 def test_the_words_of_a_removal_by_misses():
