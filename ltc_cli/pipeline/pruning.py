@@ -121,12 +121,14 @@ class SessionPruning:
             back += 1
         return back
 
-    def _take_over(self, old: int, new: int, detail: str, frame_index: int, frame_key: str) -> None:
+    def _take_over(self, old: int, new: int, detail: str, frame_index: int, frame_key: str,
+                   keep_box: bool = False) -> None:
         """The new object merges into the old one, which keeps its id and takes the new one's box
-        (where this session saw the thing) and last frame; logged as an update with ``detail``."""
+        (where this session saw the thing; with ``keep_box`` its own) and last frame; logged as an
+        update with ``detail``."""
         t = self.map.objects
         self._log(frame_index, frame_key, "updated", old + 1, detail=detail)
-        box = t.box(new)
+        box = t.box(old if keep_box else new)
         self._absorb(old, new, frame_index, frame_key)
         t.set_box(old, box)
         self.index.insert(old, box.center, box.size)
@@ -169,13 +171,8 @@ class SessionPruning:
         top = top_class(t.scores)
         pairs = earlier_duplicates(t.boxes(new), top[new], t.boxes(old), top[old], min_iou)
         for k, j, iou in pairs:
-            keep, drop = int(old[j]), int(new[k])
-            self._log(frame_index, frame_key, "updated", keep + 1, detail=joined_detail(drop + 1, t.n_det[drop], iou))
-            box = t.box(keep)
-            self._absorb(keep, drop, frame_index, frame_key)
-            t.set_box(keep, box)
-            self.index.insert(keep, box.center, box.size)
-            t.cols["last_frame"][keep] = t.last_frame[drop]  # not the session's end, as _take_over
+            self._take_over(int(old[j]), int(new[k]), joined_detail(new[k] + 1, t.n_det[new[k]], iou), frame_index,
+                            frame_key, keep_box=True)
         return len(pairs)
 
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
