@@ -59,6 +59,7 @@ class AssociationSettings(TypedDict):
     same_class_scale: Optional[float]
     other_class_height_ratio: Optional[float]
     other_class_min_overlap: Optional[float]
+    defined_min_overlap: Optional[float]
     seen_apart_gap: Optional[float]
     seen_apart_share: float
     max_union_length: dict[str, float]

@@ -10,7 +10,7 @@ from ltc_cli import plugins
 from ltc_cli.config import load_config
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, SemanticMap
-from ltc_cli.pipeline.association import apart_labels, ground_shares
+from ltc_cli.pipeline.association import apart_grounds, ground_shares
 from ltc_cli.pipeline.mapper import Mapper
 
 CLASSES = ["book", "mouse"]  # then other
@@ -41,15 +41,15 @@ def test_ground_shares_by_hand(a, b, share):
 
 def test_only_judged_pairs_are_kept_apart():
     a, b = box(*MOUSE), box(*BOOK)
-    assert apart_labels(a, b, np.array([True]), 0.2).tolist() == [True]     # 0.067 < 0.2
-    assert apart_labels(a, b, np.array([False]), 0.2).tolist() == [False]   # not judged (one class, or beyond eq. 2)
-    assert apart_labels(a, b, np.array([True]), 0.05).tolist() == [False]   # 0.067 >= 0.05
-    assert apart_labels(a, b, np.array([True]), None).tolist() == [False]   # the paper
+    assert apart_grounds(a, b, np.array([True]), 0.2).tolist() == [True]     # 0.067 < 0.2
+    assert apart_grounds(a, b, np.array([False]), 0.2).tolist() == [False]   # not judged (one class, or beyond eq. 2)
+    assert apart_grounds(a, b, np.array([True]), 0.05).tolist() == [False]   # 0.067 >= 0.05
+    assert apart_grounds(a, b, np.array([True]), None).tolist() == [False]   # the paper
     # One detection against several candidates: only the judged ones are clipped and told apart.
     # The second candidate is a 0.2 m box centred on the mouse: the mouse wholly on it (share 1).
     cands = Boxes(np.array([BOOK[0], MOUSE[0], BOOK[0]]), np.zeros(3),
                   np.array([BOOK[2], [0.2, 0.2, 0.07], BOOK[2]]), np.ones((3, 8), bool))
-    assert apart_labels(a, cands, np.array([True, True, False]), 0.2).tolist() == [True, False, False]
+    assert apart_grounds(a, cands, np.array([True, True, False]), 0.2).tolist() == [True, False, False]
 
 
 def associate(det, det_class, overrides=()):

@@ -11,7 +11,7 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import top_class
 from ltc_cli.pipeline.association import (
-    ADJOIN_ELONGATED, adjoining_partial, apart_labels, containing_candidate, containment, footprint_gaps,
+    ADJOIN_ELONGATED, adjoining_partial, apart_grounds, containing_candidate, containment, footprint_gaps,
     half_diagonals, long_axis_turns, match_reach, nearest_under_threshold, seen_elsewhere, similar_volume,
     size_caps, thresholds_for, too_long_together, unlike_heights, within_reach,
 )
@@ -50,7 +50,12 @@ class DetectionAssociation:
         unlike = other & unlike_heights(
             det.center[0, 2], det.size[0, 2], det_defined, t.center[rows, 2], t.size[rows, 2], t.defined[rows],
             a_cfg["other_class_height_ratio"])
-        unlike |= apart_labels(det, cand, other & ~unlike & (dist <= thr), a_cfg["other_class_min_overlap"])
+        unlike |= apart_grounds(det, cand, other & ~unlike & (dist <= thr), a_cfg["other_class_min_overlap"])
+        if det_defined and a_cfg["defined_min_overlap"] is not None:
+            # Whole views of one thing overlap; a whole box beside an object of this session is
+            # another thing (objects of earlier sessions: a drive's drift may put it beside).
+            whole = ~other & t.defined[rows] & (t.first_session[rows] == self.session)
+            unlike |= apart_grounds(det, cand, whole & ~unlike & (dist <= thr), a_cfg["defined_min_overlap"])
         if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
             unlike |= self._seen_elsewhere(det, cand, ~unlike & (dist <= thr))
         too_long = (cand_classes == det_class) & too_long_together(

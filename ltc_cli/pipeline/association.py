@@ -138,11 +138,14 @@ def ground_shares(a: Boxes, b: Boxes) -> np.ndarray:
     return inter / np.maximum(smaller, 1e-12)
 
 
-def apart_labels(a: Boxes, b: Boxes, judged: np.ndarray, min_share: float | None) -> np.ndarray:
-    """(M,) bool: of the pairs (as in :func:`ground_shares`) that ``judged`` (M,) marks, pairs of
-    boxes of different top classes, those sharing under ``min_share`` of the smaller footprint
-    (None: none). The footprints are clipped for the judged pairs only: eq. 2 has already ruled
-    out most candidates, and clipping them all tripled the association's time.
+def apart_grounds(a: Boxes, b: Boxes, judged: np.ndarray, min_share: float | None) -> np.ndarray:
+    """(M,) bool: of the pairs (as in :func:`ground_shares`) that ``judged`` (M,) marks, those
+    sharing under ``min_share`` of the smaller footprint (None: none). The footprints are clipped
+    for the judged pairs only: eq. 2 has already ruled out most candidates, and clipping them all
+    tripled the association's time.
+
+    For ``association.other_class_min_overlap`` the judged pairs are of different top classes,
+    for ``defined_min_overlap`` both Defined and of one class.
 
     One object under two labels stands on its own ground: its masks of either label give boxes
     over the same floor. Eq. 2 restricted to the vertices visible in both can still put a partial
