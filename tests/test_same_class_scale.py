@@ -76,10 +76,12 @@ def add_object(mapper, center, size, cls, n_det, defined, visible=None):
 def test_a_mouse_detection_beside_the_foot_is_a_mouse_of_its_own(scale, matched):
     """Stage 2: a Defined mouse detection 0.2 m from a Defined "mouse" box on a monitor's foot
     (eq. 2 over all 8 vertices, both yaw 0 and the same height: 0.2 m plus what the sizes add,
-    under 0.4, over 0.1831). ``max_union_length`` is off: it parts the two by their length alone."""
+    under 0.4, over 0.1831). ``max_union_length`` is off: it parts the two by their length alone;
+    so is ``defined_min_overlap``: the two whole boxes share no ground."""
     cfg = defaults()
     cfg["association"]["same_class_scale"] = scale
     cfg["association"]["max_union_length"] = {}
+    cfg["association"]["defined_min_overlap"] = None
     mapper = make_mapper(cfg)
     foot = add_object(mapper, [2.0, 0.2, 0.8], FOOT_SIZE, MOUSE, n_det=7, defined=True)
     det = Boxes(np.array([[2.0, 0.0, 0.8]]), np.zeros(1), np.array([MOUSE_SIZE]), np.ones((1, 8), bool))

@@ -103,6 +103,9 @@ def mapper_after_frame(overrides, frame_depth, objects):
     ((), 0.02, True, True),    # within the gap: one thing
 ])
 def test_a_detection_beside_a_thing_seen_in_its_place(overrides, gap, trackball_there, takes_it):
+    # defined_min_overlap is off: the whole detection shares no ground with the whole trackball's
+    # box, and this test is of seen_apart alone.
+    overrides = (*overrides, "association.defined_min_overlap=null")
     mapper, _ = mapper_after_frame(overrides, depth(trackball_there), [(*TRACKBALL, 2, [True] * 8)])
     row, _ = mapper._associate(controller(gap), 0, np.array([0]), True)
     assert (row == 0) == takes_it
