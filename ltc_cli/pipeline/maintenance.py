@@ -297,7 +297,7 @@ def drifted_match(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np
 
 
 def earlier_duplicates(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np.ndarray,
-                       min_iou: float) -> list[tuple[int, int, float]]:
+                       min_iou: float, same: bool = False) -> list[tuple[int, int, float]]:
     """[(k, j, iou)]: each of K objects (``boxes``, ``top`` (K,)) paired with the object of ``earlier``
     of its top class whose footprint it overlaps by an XY IoU of at least ``min_iou``, greatest
     overlaps first, each object in at most one pair.
@@ -309,17 +309,22 @@ def earlier_duplicates(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_to
     boxes, IoU 0.18-0.35). The merges within a frame do not join them: a small thing's drifted copy
     lies beyond eq. 2's size cap (``same_class_scale``) and the two together beyond
     ``max_union_length``. Two things of one class side by side share next to none (on tum-fr1-rpy
-    the second chair, which a drive's other half adds beside the first: 0.01)."""
+    the second chair, which a drive's other half adds beside the first: 0.01).
+
+    ``same``: ``earlier`` is ``boxes`` itself, ordered best seen first (``session_overlap_iou``):
+    each pair once, the later object (k) into the earlier (j < k), each object in one pair."""
     if not len(boxes) or not len(earlier):
         return []
     iou, _ = pairwise_ious_arrays(boxes.center, boxes.yaw, boxes.size, earlier.center, earlier.yaw, earlier.size)
     iou = np.where(np.asarray(top)[:, None] == np.asarray(earlier_top)[None, :], iou, -1.0)
+    if same:
+        iou[np.triu_indices(len(boxes))] = -1.0
     pairs, used_k, used_j = [], set(), set()
     for flat in np.argsort(-iou, axis=None, kind="stable"):
         k, j = (int(v) for v in np.unravel_index(flat, iou.shape))
         if iou[k, j] < min_iou or iou[k, j] <= 0.0:
             break
-        if k not in used_k and j not in used_j:
+        if k not in used_k and j not in used_j and not (same and (k in used_j or j in used_k)):
             pairs.append((k, j, float(iou[k, j])))
             used_k.add(k)
             used_j.add(j)

@@ -49,6 +49,8 @@ class SessionPruning:
             self._reidentify(self._absent(), rows, m_cfg["reidentify_margin"], frame_index, frame_key)
         if m_cfg["earlier_overlap_iou"] is not None:
             self._join_earlier(rows, m_cfg["earlier_overlap_iou"], frame_index, frame_key)
+        if m_cfg["session_overlap_iou"] is not None:
+            self._join_within(rows, m_cfg["session_overlap_iou"], frame_index, frame_key)
         gone = 0
         # A policy that never removes (the static world) says so with ``removes = False``.
         if m_cfg["absent_after_views"] is not None and getattr(self.policy, "removes", True):
@@ -173,6 +175,27 @@ class SessionPruning:
         for k, j, iou in pairs:
             self._take_over(int(old[j]), int(new[k]), joined_detail(new[k] + 1, t.n_det[new[k]], iou), frame_index,
                             frame_key, keep_box=True)
+        return len(pairs)
+
+    def _join_within(self, unconfirmed_rows, min_iou: float, frame_index: int, frame_key: str) -> int:
+        """Confirmed small objects of this session (longer side at most ``occupied_max_width``)
+        whose footprints overlap one of their class by ``min_iou``
+        (:func:`~ltc_cli.pipeline.maintenance.earlier_duplicates`, ``same``) become one: the better
+        seen keeps its id and box and takes the other's detections. A localiser's jitter puts a
+        small thing's whole views a few centimetres apart within one drive, and eq. 2's size cap and
+        ``max_union_length`` keep the two boxes apart in every frame. Returns how many."""
+        t = self.map.objects
+        new = np.setdiff1d(np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session)), unconfirmed_rows)
+        new = new[t.size[new, :2].max(axis=1) <= self.cfg["maintenance"]["occupied_max_width"]]
+        new = new[np.argsort(-t.n_det[new], kind="stable")]  # the best evidence first
+        top = top_class(t.scores)
+        pairs = earlier_duplicates(t.boxes(new), top[new], t.boxes(new), top[new], min_iou, same=True)
+        for k, j, iou in pairs:
+            keep, drop = int(new[j]), int(new[k])
+            last = max(t.last_frame[keep], t.last_frame[drop])
+            self._take_over(keep, drop, joined_detail(drop + 1, t.n_det[drop], iou), frame_index, frame_key,
+                            keep_box=True)
+            t.cols["last_frame"][keep] = last
         return len(pairs)
 
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
