@@ -141,6 +141,7 @@ class MaintenanceSettings(TypedDict):
     return_after_misses: bool
     reidentify_margin: Optional[float]
     earlier_overlap_iou: Optional[float]
+    earlier_small_overlap_iou: Optional[float]
     session_overlap_iou: Optional[float]
     confirm_min_move: Optional[float]
     confirm_min_turn: Optional[float]

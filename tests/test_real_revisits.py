@@ -49,7 +49,7 @@ class RevisitPlugin:
         register("third-from-2", Reordered(step=3, start=2))
         register("third-from-1", Reordered(step=3, start=1))
         register("fifth-from-1", Reordered(step=5, start=1))
-        for seed in (5, 6):  # benchmarks/bench_real.py's third pair of draws
+        for seed in (3, 4, 5, 6):  # benchmarks/bench_real.py's second and third pairs of draws
             register(f"drift-{seed}", Drifted(seed, 60.0))
         register("drift-3-fast", Drifted(3, 15.0))  # the simulator's faster drift
 
@@ -356,19 +356,45 @@ def test_a_one_view_chair_does_not_take_the_monitor_behind_into_the_front_one(dr
     assert wrong == (["monitor behind the front one, its back"] if reshapes else [])
 
 
-@pytest.mark.parametrize("min_iou", [0.1, None])
-def test_a_drifted_copy_of_a_mouse_joins_its_first_box(drive_5_then_6, tmp_path, min_iou):
+@pytest.mark.parametrize("overrides, mice", [
+    ([], 3),
+    (["maintenance.earlier_small_overlap_iou=null"], 4),
+    (["maintenance.earlier_overlap_iou=null"], 5),
+])
+def test_drifted_copies_of_mice_join_their_first_boxes(drive_5_then_6, tmp_path, overrides, mice):
     """The revisit sees the trackball 9 cm from its first box and makes a new "mouse" there,
-    overlapping it (XY IoU 0.18). With ``maintenance.earlier_overlap_iou`` the new one joins the
-    first box at the session's end (one "joined" event) and the revisit counts 4 mice; without it,
-    5 (docs/decisions.md, thirty-seventh round). Every id stays either way."""
-    if min_iou:
+    overlapping it (XY IoU 0.18), and the white mouse 0.1 m from its first box (IoU 0.095), too
+    far to join it in any frame (together longer than a mouse, ``max_union_length``). With
+    ``maintenance.earlier_overlap_iou`` (thirty-seventh round) the trackball's new box joins its
+    first one at the session's end; with ``earlier_small_overlap_iou`` (thirty-ninth round) the
+    white mouse's too, and the revisit counts the 3 mice of drive 5 (each join one "joined" event).
+    Without the small bar, 4; without either, 5. Every id stays either way."""
+    if not overrides:
         _, m, ids1, ids2 = drive_5_then_6
     else:
-        m, ids1, ids2 = drive(["maintenance.earlier_overlap_iou=null"], tmp_path)
+        m, ids1, ids2 = drive(overrides, tmp_path)
     assert ids1 <= ids2
     counts = census(m)[0]
     joined = [e for e in load_map(m).events if e.session == 1 and e.detail.startswith("joined")]
-    assert counts["mouse"] == (4 if min_iou else 5)
-    assert len(joined) == (1 if min_iou else 0)
+    assert counts["mouse"] == mice
+    assert len(joined) == 5 - mice
 
+
+@pytest.mark.parametrize("small_iou, mice", [(None, 3), ("null", 4)])
+def test_a_partial_trackball_box_of_a_revisit_joins_the_first_one(tmp_path, session, small_iou, mice):
+    """Drive 3, then the revisit with draw 4: the revisit's drift puts the trackball's partial views
+    0.12 m from its first box, beyond eq. 2's size cap, and makes a fourth "mouse" there whose
+    footprint overlaps the first box by an XY IoU of 0.03. ``maintenance.earlier_small_overlap_iou``
+    (0.02) joins it to the first box at the session's end: 3 mice, as drive 3 counted; without it
+    (``earlier_overlap_iou``'s 0.1 for every pair), 4 (docs/decisions.md, thirty-ninth round)."""
+    overrides = [] if small_iou is None else [f"maintenance.earlier_small_overlap_iou={small_iou}"]
+    m = tmp_path / "map.h5"
+    cfg = load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
+    ingest([DATA], m, cfg, reader="drift-3")
+    counts1, ids1 = census(m)
+    ingest([DATA], m, cfg, reader="drift-4", revisit=True)
+    counts2, ids2 = census(m)
+    assert (counts1["mouse"], counts2["mouse"]) == (3, mice)
+    assert ids1 <= ids2
+    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
+    assert wrong == []

@@ -297,10 +297,10 @@ def drifted_match(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np
 
 
 def earlier_duplicates(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_top: np.ndarray,
-                       min_iou: float, same: bool = False) -> list[tuple[int, int, float]]:
+                       min_iou, same: bool = False) -> list[tuple[int, int, float]]:
     """[(k, j, iou)]: each of K objects (``boxes``, ``top`` (K,)) paired with the object of ``earlier``
-    of its top class whose footprint it overlaps by an XY IoU of at least ``min_iou``, greatest
-    overlaps first, each object in at most one pair.
+    of its top class whose footprint it overlaps by an XY IoU of at least ``min_iou`` (one bar, or
+    (K, J) one per pair), greatest overlaps first, each object in at most one pair.
 
     For ``maintenance.earlier_overlap_iou``: ``boxes`` this session's confirmed new objects,
     ``earlier`` the active objects of earlier sessions. Two boxes of one class that share that
@@ -316,19 +316,36 @@ def earlier_duplicates(boxes: Boxes, top: np.ndarray, earlier: Boxes, earlier_to
     if not len(boxes) or not len(earlier):
         return []
     iou, _ = pairwise_ious_arrays(boxes.center, boxes.yaw, boxes.size, earlier.center, earlier.yaw, earlier.size)
-    iou = np.where(np.asarray(top)[:, None] == np.asarray(earlier_top)[None, :], iou, -1.0)
+    ok = (np.asarray(top)[:, None] == np.asarray(earlier_top)[None, :]) & (iou >= min_iou) & (iou > 0.0)
+    iou = np.where(ok, iou, -1.0)
     if same:
         iou[np.triu_indices(len(boxes))] = -1.0
     pairs, used_k, used_j = [], set(), set()
     for flat in np.argsort(-iou, axis=None, kind="stable"):
         k, j = (int(v) for v in np.unravel_index(flat, iou.shape))
-        if iou[k, j] < min_iou or iou[k, j] <= 0.0:
+        if iou[k, j] <= 0.0:
             break
         if k not in used_k and j not in used_j and not (same and (k in used_j or j in used_k)):
             pairs.append((k, j, float(iou[k, j])))
             used_k.add(k)
             used_j.add(j)
     return pairs
+
+
+def join_bars(size_new: np.ndarray, size_old: np.ndarray, min_iou: float, small_iou: float | None,
+              small_width: float) -> np.ndarray:
+    """(K, J) the XY IoU that joins each of K new objects (sizes (K, 3)) with each of J earlier ones:
+    ``small_iou`` when both are small (longer side at most ``small_width``; None: ``min_iou``).
+
+    A revisit's drift moves a small thing's views by much of its size (tum-fr1-rpy: the white
+    mouse, 0.14 m, 0.1 m off its first box, IoU 0.095; the trackball's new box IoU 0.03 with its
+    old one), where a chair's drifted copy still shares most of its ground."""
+    bars = np.full((len(size_new), len(size_old)), float(min_iou))
+    if small_iou is not None:
+        small_new = np.asarray(size_new)[:, :2].max(axis=1) <= small_width
+        small_old = np.asarray(size_old)[:, :2].max(axis=1) <= small_width
+        bars[small_new[:, None] & small_old[None, :]] = small_iou
+    return bars
 
 
 def found_again(first_session: np.ndarray, last_session: np.ndarray, last_frame: np.ndarray, session: int,

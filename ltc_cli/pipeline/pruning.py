@@ -10,7 +10,8 @@ import numpy as np
 
 from ltc_cli.map.model import ACTIVE, REMOVED, top_class
 from ltc_cli.pipeline.maintenance import (
-    absent_in_session, drifted_match, earlier_duplicates, removed_unconfirmed, same_class_overlap, unconfirmed,
+    absent_in_session, drifted_match, earlier_duplicates, join_bars, removed_unconfirmed, same_class_overlap,
+    unconfirmed,
 )
 from ltc_cli.pipeline.reasons import (
     absent_detail, joined_detail, reidentified_detail, removed_by_misses, returned_detail, unconfirmed_detail,
@@ -48,7 +49,8 @@ class SessionPruning:
         if m_cfg["reidentify_margin"] is not None and getattr(self.policy, "removes", True):
             self._reidentify(self._absent(), rows, m_cfg["reidentify_margin"], frame_index, frame_key)
         if m_cfg["earlier_overlap_iou"] is not None:
-            self._join_earlier(rows, m_cfg["earlier_overlap_iou"], frame_index, frame_key)
+            self._join_earlier(rows, m_cfg["earlier_overlap_iou"], frame_index, frame_key,
+                               m_cfg["earlier_small_overlap_iou"])
         if m_cfg["session_overlap_iou"] is not None:
             self._join_within(rows, m_cfg["session_overlap_iou"], frame_index, frame_key)
         gone = 0
@@ -160,9 +162,11 @@ class SessionPruning:
             done += 1
         return done
 
-    def _join_earlier(self, unconfirmed_rows, min_iou: float, frame_index: int, frame_key: str) -> int:
+    def _join_earlier(self, unconfirmed_rows, min_iou: float, frame_index: int, frame_key: str,
+                      small_iou: float | None = None) -> int:
         """Each confirmed new object whose footprint overlaps an active object of an earlier session
-        of its class by ``min_iou`` (:func:`~ltc_cli.pipeline.maintenance.earlier_duplicates`) merges
+        of its class by ``min_iou`` (:func:`~ltc_cli.pipeline.maintenance.earlier_duplicates`;
+        ``small_iou`` when both are small, :func:`~ltc_cli.pipeline.maintenance.join_bars`) merges
         into it: the earlier one keeps its id and its box (the map's reference for the thing; the
         new box is this drive's drifted copy) and takes the new one's detections and class
         evidence. Returns how many."""
@@ -171,7 +175,8 @@ class SessionPruning:
         new = np.setdiff1d(np.flatnonzero(active & (t.first_session == self.session)), unconfirmed_rows)
         old = np.flatnonzero(active & (t.first_session < self.session))
         top = top_class(t.scores)
-        pairs = earlier_duplicates(t.boxes(new), top[new], t.boxes(old), top[old], min_iou)
+        bars = join_bars(t.size[new], t.size[old], min_iou, small_iou, self.cfg["maintenance"]["occupied_max_width"])
+        pairs = earlier_duplicates(t.boxes(new), top[new], t.boxes(old), top[old], bars)
         for k, j, iou in pairs:
             self._take_over(int(old[j]), int(new[k]), joined_detail(new[k] + 1, t.n_det[new[k]], iou), frame_index,
                             frame_key, keep_box=True)
