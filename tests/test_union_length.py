@@ -7,7 +7,7 @@ import pytest
 from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.pipeline.association import too_long_together, union_diameters
+from ltc_cli.pipeline.association import longer_sides, too_long_together, union_diameters
 from ltc_cli.pipeline.deduplication import merge_pairs
 
 
@@ -47,6 +47,20 @@ def test_too_long_together_by_hand():
     assert too_long_together(a_side, b_side, np.array([0.25, 0.25, 0.25, np.inf])).tolist() == \
         [True, False, False, False]
     assert too_long_together(a_side, b_side, np.inf).tolist() == [False] * 4
+
+
+def test_a_wide_box_within_the_limit_is_judged_by_hand():
+    """A partial "mouse" grown to 0.2 x 0.2 m: longer side 0.2, within 0.25, diagonal sqrt(0.08) =
+    0.283 beyond it. A trackball-sized box at x 0.15 reaches past it (together from (-0.1, 0.1) to
+    (0.21, -0.04): sqrt(0.31^2 + 0.14^2) = 0.340 > 0.283): too long. One inside it (at x 0.02, up
+    to 0.08) adds no span (0.283, its own): not. The foot's longer side, 0.27, is beyond the limit:
+    not judged. Until the thirty-ninth round the wide box, 0.283 corner to corner, was not judged."""
+    b = boxes((0.0, 0.2, 0.2), (0.15, 0.12, 0.08), (0.02, 0.12, 0.08), FOOT)
+    f = feet(b)
+    assert longer_sides(f) == pytest.approx([0.2, 0.12, 0.12, 0.27])
+    assert union_diameters(f[[0, 0]], f[[1, 2]]) == pytest.approx([np.hypot(0.31, 0.14), np.sqrt(0.08)])
+    assert too_long_together(f[[0, 0, 0]], f[[1, 2, 3]], 0.25).tolist() == [True, False, False]
+    assert too_long_together(f[[1, 2]], f[[0, 0]], 0.25).tolist() == [True, False]  # either order
 
 
 @pytest.mark.parametrize("limit, merged", [(None, True), (0.25, False), (0.3, True)])
