@@ -61,8 +61,17 @@ def test_the_better_seen_keeps_its_id_and_box():
     {"x": 0.09},                 # 0.01 x 0.1 / 0.019: IoU 0.053 < 0.1
     {"size": 0.3, "x": 0.15},    # furniture-sized (0.3 m > occupied_max_width 0.25): IoU 1/3, left alone
     {"first": (0, 1)},           # one of them an earlier session's: earlier_overlap_iou's (off here)
+    {"x": 0.099, "min_iou": 0.02},  # 0.001 x 0.1 / 0.0199: IoU 0.005 < 0.02 (the default since round 39)
 ])
 def test_no_join_within(change):
     smap = session_end(**{"first": (1, 1), **change})
     t = smap.objects
     assert (t.status[0], t.status[1]) == (ACTIVE, ACTIVE)
+
+
+def test_the_default_bar_joins_a_sliver_of_shared_ground():
+    """At the default bar (0.02, thirty-ninth round) two mice made in session 1 that share 0.01 x
+    0.1 m of ground (IoU 1/19 = 0.053, under the thirty-eighth round's 0.1) become one."""
+    assert defaults()["maintenance"]["session_overlap_iou"] == 0.02
+    smap = session_end(min_iou=0.02, x=0.09, first=(1, 1))
+    assert (smap.objects.status[0], smap.objects.status[1]) == (MERGED, ACTIVE)
