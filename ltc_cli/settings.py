@@ -22,6 +22,7 @@ class ModelingSettings(TypedDict):
     edge_jump: Optional[float]
     picture_flatness: Optional[float]
     picture_depth_noise: Optional[float]
+    picture_wall_share: Optional[float]
     picture_object_share: Optional[float]
     picture_min_views: int
     min_depth_share: Optional[float]

@@ -137,7 +137,9 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     flatness = config["modeling"]["picture_flatness"]
     if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
         noise = config["modeling"]["picture_depth_noise"] or 0.0
-        flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, noise_per_m2=noise) for m in masks])
+        share = config["modeling"]["picture_wall_share"]
+        flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, noise_per_m2=noise, wall_share=share)
+                         for m in masks])
         points = [mask_point(masks[i], depth_m, intr, T_map_camera) for i in np.flatnonzero(flat)]
         flat_top = np.array([t for t, p in zip(top[flat], points) if p is not None], dtype=int)
         flat_xyz = np.array([p for p in points if p is not None]).reshape(-1, 3)

@@ -39,14 +39,64 @@ def square_dilation(mask: np.ndarray, radius: int) -> np.ndarray:
     return out.view(bool)
 
 
+def wall_planes(points_xyz: np.ndarray, depth: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Candidate walls [(centre (3,), unit normal (3,))] behind a band of points_xyz (N, 3) that is
+    partly off its wall, each a least-squares plane (SVD about the median): of the band's farther
+    half (``depth`` (N,): each point's camera depth), and of the half nearest to the plane of all
+    the points, twice over.
+
+    A wall is the farthest thing there is, so what the band around a poster meets off the wall (a
+    sideboard's top or front below it) stands in front of it, and a plane fitted to every point
+    tilts between the two. The farther half misses the wall when the band's off-wall part is the
+    larger one; the trimmed fit then still finds it from the wall's own points."""
+    def fit(pts):
+        centre = np.median(pts, axis=0)
+        return centre, np.linalg.svd(pts - centre, full_matrices=False)[2][-1]
+
+    planes = [fit(points_xyz[np.asarray(depth) >= np.median(depth)])]
+    pts = points_xyz
+    for _ in range(2):
+        centre, normal = fit(pts)
+        dist = np.abs((points_xyz - centre) @ normal)
+        pts = points_xyz[dist <= np.median(dist)]
+    return planes + [fit(pts)]
+
+
+def on_wall(band_xyz: np.ndarray, centre: np.ndarray, normal: np.ndarray, tolerance: float, share: float,
+            max_tilt: float, camera_xyz: np.ndarray | None = None, min_facing: float = 0.0,
+            max_behind: float = 0.1) -> bool:
+    """Whether ``share`` of the band's points (band_xyz (N, 3)) lie within ``tolerance`` of the
+    plane (centre, normal) and that plane is vertical (|normal z| <= ``max_tilt``).
+
+    With ``camera_xyz`` (the band partly off the plane), also: the camera faces the plane (the
+    cosine between its normal and the ray at least ``min_facing``: a plane along the line of sight,
+    a table's edge running away, leaves depth unmeasured), and at most ``max_behind`` of the band
+    lies beyond it: what the band meets off a wall stands in front of it, while a screen's bezel is
+    a plane with the room behind it."""
+    if abs(normal[2]) > max_tilt:
+        return False
+    d = (band_xyz - centre) @ normal
+    if camera_xyz is not None:
+        ray = centre - camera_xyz
+        if abs(ray @ normal) < min_facing * np.linalg.norm(ray):
+            return False
+        if np.mean((-d if ray @ normal < 0 else d) > tolerance) > max_behind:
+            return False
+    return bool(np.mean(np.abs(d) <= tolerance) >= share)
+
+
 def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray,
                  tolerance: float, band_px: int = 10, gap_px: int = 3, max_tilt: float = 0.3,
-                 min_points: int = 40, step: int = 3, noise_per_m2: float = 0.0) -> bool:
+                 min_points: int = 40, step: int = 3, noise_per_m2: float = 0.0, wall_share: float | None = None,
+                 min_facing: float = 0.7) -> bool:
     """True when the detection (mask (H, W) bool) lies flat on a wall: the pixels in a band around
     the mask (``gap_px`` to ``gap_px + band_px`` pixels out, past where masks bleed) fit one plane,
     that plane is vertical (|normal z| <= ``max_tilt``; map z is up), 80 % of the band lies within
     ``tolerance + noise_per_m2 * Z^2`` of it (Z: the band's median depth), and the mask's own pixels
-    lie on it: their median signed distance is within ``tolerance``.
+    lie on it: their median signed distance is within ``tolerance``. With ``wall_share``, a band
+    partly off its wall (a sideboard below a poster) also finds it: ``wall_share`` of the band on
+    one of :func:`wall_planes`, which the camera faces (cosine at least ``min_facing``) and beyond
+    which it sees next to nothing (:func:`on_wall`).
 
     A depth sensor's noise grows with the square of the depth (Kinect v1: sigma about 0.0019 Z^2,
     Nguyen et al., 3DIMPVT 2012): at 3 m a fixed 2.5 cm band holds well under 80 % of a plain wall.
@@ -88,12 +138,17 @@ def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_
     if len(ring) < min_points or len(inside) < min_points // 4:
         return False
     centre = np.median(ring, axis=0)
-    _, _, vt = np.linalg.svd(ring - centre, full_matrices=False)
-    normal = vt[-1]
-    if abs(normal[2]) > max_tilt:
-        return False  # not a wall
-    if np.mean(np.abs((ring - centre) @ normal) <= band_tolerance) < 0.8:
-        return False  # the surroundings are not one surface (a thing in front of several)
+    normal = np.linalg.svd(ring - centre, full_matrices=False)[2][-1]
+    # The whole band on one vertical plane; or, failing that (the band also meets a sideboard below
+    # a poster), most of it on a vertical plane the camera faces, with nothing seen beyond it.
+    if not on_wall(ring, centre, normal, band_tolerance, 0.8, max_tilt):
+        if wall_share is None:
+            return False
+        for centre, normal in wall_planes(ring, z_ring):
+            if on_wall(ring, centre, normal, band_tolerance, wall_share, max_tilt, T_map_camera[:3, 3], min_facing):
+                break
+        else:
+            return False
     d = (inside - centre) @ normal
     # Oriented towards the camera: a thing in front of the wall has all its points on that side.
     cam = T_map_camera[:3, 3]
