@@ -81,6 +81,18 @@ def within_truth(counts: Counter, slack: int = 0) -> list[str]:
     return off + [f"{c} 0" for c, (lo, _) in TRUTH.items() if lo > slack and counts.get(c, 0) == 0]
 
 
+def cached_config(key: str | None = None, value=None):
+    """The cached detector's config, with ``key`` set to ``value`` unless value is None (the
+    default)."""
+    overrides = [] if value is None else [f"{key}={value}"]
+    return load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
+
+
+def misplaced(m) -> list[str]:
+    """The hand-measured places (tests/real_truth.py) the map at ``m`` does not hold, with where."""
+    return [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
+
+
 def test_forward_then_reversed_then_half_rate_sessions_keep_every_id(session, tmp_path):
     """Counts after every revisit as the README's. From the fifteenth round this allowed one over
     per class: from the third session on the front monitor's foot was a third "mouse" (its top
@@ -144,8 +156,7 @@ def test_a_drive_along_the_rest_of_the_route_keeps_every_id(session, tmp_path, f
     assert within_truth(counts1) == []
     assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
     assert within_truth(counts2) == []
-    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
-    assert wrong == []
+    assert misplaced(m) == []
     # The trackball and the game controller 2 cm beside it, both "mouse", in two boxes: before
     # ``association.max_union_length`` the second half's first frames made one 0.29 m box of them.
     assert merged_pairs(load_map(m), APART["tum-fr1-rpy"]) == []
@@ -219,8 +230,7 @@ def test_read_backwards_or_at_half_rate_every_hand_measured_place_holds(session,
     "mouse" (docs/decisions.md, thirty-first round)."""
     m = tmp_path / "map.h5"
     session(reader, m)
-    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
-    assert wrong == []
+    assert misplaced(m) == []
 
 
 def test_a_third_of_the_frame_rate_maps_what_is_in_view(session, tmp_path):
@@ -270,8 +280,7 @@ def test_every_fifth_frame_keeps_the_two_book_piles_apart(tmp_path, session, bar
     pile's whole box by eq. 2 and one box stood between the two (docs/decisions.md, thirty-eighth
     round)."""
     m = tmp_path / "map.h5"
-    overrides = [] if bar is None else [f"association.defined_min_overlap={bar}"]
-    cfg = load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
+    cfg = cached_config("association.defined_min_overlap", bar)
     ingest([DATA], m, cfg, reader="fifth-from-1")
     piles = [p for p in APART["tum-fr1-rpy"] if "book" in p[0]]
     assert (merged_pairs(load_map(m), piles) == []) == apart
@@ -286,13 +295,11 @@ def test_a_jittery_localiser_leaves_no_second_box_of_a_small_thing(tmp_path, ses
     "mouse" (the white mouse, the trackball, the game controller); without it, 5 (docs/decisions.md,
     thirty-eighth round)."""
     m = tmp_path / "map.h5"
-    overrides = [] if bar is None else [f"maintenance.session_overlap_iou={bar}"]
-    cfg = load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
+    cfg = cached_config("maintenance.session_overlap_iou", bar)
     ingest([DATA], m, cfg, reader="drift-3-fast")
     counts, _ = census(m)
     assert counts["mouse"] == mice
-    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
-    assert wrong == []
+    assert misplaced(m) == []
 
 
 @pytest.fixture(scope="module")
@@ -388,17 +395,15 @@ def test_a_partial_trackball_box_of_a_revisit_joins_the_first_one(tmp_path, sess
     footprint overlaps the first box by an XY IoU of 0.03. ``maintenance.earlier_small_overlap_iou``
     (0.02) joins it to the first box at the session's end: 3 mice, as drive 3 counted; without it
     (``earlier_overlap_iou``'s 0.1 for every pair), 4 (docs/decisions.md, thirty-ninth round)."""
-    overrides = [] if small_iou is None else [f"maintenance.earlier_small_overlap_iou={small_iou}"]
     m = tmp_path / "map.h5"
-    cfg = load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
+    cfg = cached_config("maintenance.earlier_small_overlap_iou", small_iou)
     ingest([DATA], m, cfg, reader="drift-3")
     counts1, ids1 = census(m)
     ingest([DATA], m, cfg, reader="drift-4", revisit=True)
     counts2, ids2 = census(m)
     assert (counts1["mouse"], counts2["mouse"]) == (3, mice)
     assert ids1 <= ids2
-    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
-    assert wrong == []
+    assert misplaced(m) == []
 
 
 @pytest.mark.parametrize("bar, mice", [(None, 3), ("0.1", 4)])
@@ -414,13 +419,11 @@ def test_a_wide_mouse_box_takes_no_neighbours_views_under_a_fast_drift(tmp_path,
     drive and its revisit count 3 mice; at the thirty-eighth round's 0.1, 4 (docs/decisions.md,
     thirty-ninth round)."""
     m = tmp_path / "map.h5"
-    overrides = [] if bar is None else [f"maintenance.session_overlap_iou={bar}"]
-    cfg = load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
+    cfg = cached_config("maintenance.session_overlap_iou", bar)
     ingest([DATA], m, cfg, reader="drift-1-fast")
     counts1, ids1 = census(m)
     ingest([DATA], m, cfg, reader="drift-2-fast", revisit=True)
     counts2, ids2 = census(m)
     assert (counts1["mouse"], counts2["mouse"]) == (mice, mice)
     assert sorted(ids1 - ids2) == []
-    wrong = [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
-    assert wrong == []
+    assert misplaced(m) == []
