@@ -88,6 +88,16 @@ def cached_config(key: str | None = None, value=None):
     return load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
 
 
+def drive_and_revisit(first: str, then: str, cfg, tmp_path):
+    """A session with reader ``first``, then a revisit with ``then``, into one map: (map, counts and
+    ids after each)."""
+    m = tmp_path / "map.h5"
+    ingest([DATA], m, cfg, reader=first)
+    counts1, ids1 = census(m)
+    ingest([DATA], m, cfg, reader=then, revisit=True)
+    return (m, counts1, ids1, *census(m))
+
+
 def misplaced(m) -> list[str]:
     """The hand-measured places (tests/real_truth.py) the map at ``m`` does not hold, with where."""
     return [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
@@ -395,12 +405,8 @@ def test_a_partial_trackball_box_of_a_revisit_joins_the_first_one(tmp_path, sess
     footprint overlaps the first box by an XY IoU of 0.03. ``maintenance.earlier_small_overlap_iou``
     (0.02) joins it to the first box at the session's end: 3 mice, as drive 3 counted; without it
     (``earlier_overlap_iou``'s 0.1 for every pair), 4 (docs/decisions.md, thirty-ninth round)."""
-    m = tmp_path / "map.h5"
-    cfg = cached_config("maintenance.earlier_small_overlap_iou", small_iou)
-    ingest([DATA], m, cfg, reader="drift-3")
-    counts1, ids1 = census(m)
-    ingest([DATA], m, cfg, reader="drift-4", revisit=True)
-    counts2, ids2 = census(m)
+    m, counts1, ids1, counts2, ids2 = drive_and_revisit("drift-3", "drift-4", cached_config("maintenance.earlier_small_overlap_iou", small_iou),
+                                                        tmp_path)
     assert (counts1["mouse"], counts2["mouse"]) == (3, mice)
     assert ids1 <= ids2
     assert misplaced(m) == []
@@ -418,12 +424,8 @@ def test_a_wide_mouse_box_takes_no_neighbours_views_under_a_fast_drift(tmp_path,
     IoU 0.058): ``maintenance.session_overlap_iou`` at 0.02 joins them at the drive's end, and the
     drive and its revisit count 3 mice; at the thirty-eighth round's 0.1, 4 (docs/decisions.md,
     thirty-ninth round)."""
-    m = tmp_path / "map.h5"
-    cfg = cached_config("maintenance.session_overlap_iou", bar)
-    ingest([DATA], m, cfg, reader="drift-1-fast")
-    counts1, ids1 = census(m)
-    ingest([DATA], m, cfg, reader="drift-2-fast", revisit=True)
-    counts2, ids2 = census(m)
+    m, counts1, ids1, counts2, ids2 = drive_and_revisit("drift-1-fast", "drift-2-fast", cached_config("maintenance.session_overlap_iou", bar),
+                                                        tmp_path)
     assert (counts1["mouse"], counts2["mouse"]) == (mice, mice)
     assert sorted(ids1 - ids2) == []
     assert misplaced(m) == []
