@@ -342,10 +342,13 @@ def join_bars(size_new: np.ndarray, size_old: np.ndarray, min_iou: float, small_
     old one), where a chair's drifted copy still shares most of its ground."""
     bars = np.full((len(size_new), len(size_old)), float(min_iou))
     if small_iou is not None:
-        small_new = np.asarray(size_new)[:, :2].max(axis=1) <= small_width
-        small_old = np.asarray(size_old)[:, :2].max(axis=1) <= small_width
-        bars[small_new[:, None] & small_old[None, :]] = small_iou
+        bars[small_things(size_new, small_width)[:, None] & small_things(size_old, small_width)[None, :]] = small_iou
     return bars
+
+
+def small_things(size: np.ndarray, width: float) -> np.ndarray:
+    """(M,) bool: boxes (sizes (M, 3)) whose longer footprint side is at most ``width`` metres."""
+    return np.asarray(size)[:, :2].max(axis=1) <= width
 
 
 def found_again(first_session: np.ndarray, last_session: np.ndarray, last_frame: np.ndarray, session: int,

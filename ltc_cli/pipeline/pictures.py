@@ -49,17 +49,20 @@ def wall_planes(points_xyz: np.ndarray, depth: np.ndarray) -> list[tuple[np.ndar
     sideboard's top or front below it) stands in front of it, and a plane fitted to every point
     tilts between the two. The farther half misses the wall when the band's off-wall part is the
     larger one; the trimmed fit then still finds it from the wall's own points."""
-    def fit(pts):
-        centre = np.median(pts, axis=0)
-        return centre, np.linalg.svd(pts - centre, full_matrices=False)[2][-1]
-
-    planes = [fit(points_xyz[np.asarray(depth) >= np.median(depth)])]
+    planes = [plane_fit(points_xyz[np.asarray(depth) >= np.median(depth)])]
     pts = points_xyz
     for _ in range(2):
-        centre, normal = fit(pts)
+        centre, normal = plane_fit(pts)
         dist = np.abs((points_xyz - centre) @ normal)
         pts = points_xyz[dist <= np.median(dist)]
-    return planes + [fit(pts)]
+    return planes + [plane_fit(pts)]
+
+
+def plane_fit(points_xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(centre (3,), unit normal (3,)): the least-squares plane of points_xyz (N, 3) through their
+    median (SVD: the direction of least spread)."""
+    centre = np.median(points_xyz, axis=0)
+    return centre, np.linalg.svd(points_xyz - centre, full_matrices=False)[2][-1]
 
 
 def on_wall(band_xyz: np.ndarray, centre: np.ndarray, normal: np.ndarray, tolerance: float, share: float,
@@ -137,8 +140,7 @@ def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_
     inside = _points_map(mv, mu, depth_m, intr, T_map_camera)
     if len(ring) < min_points or len(inside) < min_points // 4:
         return False
-    centre = np.median(ring, axis=0)
-    normal = np.linalg.svd(ring - centre, full_matrices=False)[2][-1]
+    centre, normal = plane_fit(ring)
     # The whole band on one vertical plane; or, failing that (the band also meets a sideboard below
     # a poster), most of it on a vertical plane the camera faces, with nothing seen beyond it.
     if not on_wall(ring, centre, normal, band_tolerance, 0.8, max_tilt):

@@ -11,7 +11,7 @@ import numpy as np
 from ltc_cli.map.model import ACTIVE, REMOVED, top_class
 from ltc_cli.pipeline.maintenance import (
     absent_in_session, drifted_match, earlier_duplicates, join_bars, removed_unconfirmed, same_class_overlap,
-    unconfirmed,
+    small_things, unconfirmed,
 )
 from ltc_cli.pipeline.reasons import (
     absent_detail, joined_detail, reidentified_detail, removed_by_misses, returned_detail, unconfirmed_detail,
@@ -191,7 +191,7 @@ class SessionPruning:
         ``max_union_length`` keep the two boxes apart in every frame. Returns how many."""
         t = self.map.objects
         new = np.setdiff1d(np.flatnonzero((t.status == ACTIVE) & (t.first_session == self.session)), unconfirmed_rows)
-        new = new[t.size[new, :2].max(axis=1) <= self.cfg["maintenance"]["occupied_max_width"]]
+        new = new[small_things(t.size[new], self.cfg["maintenance"]["occupied_max_width"])]
         new = new[np.argsort(-t.n_det[new], kind="stable")]  # the best evidence first
         top = top_class(t.scores)
         pairs = earlier_duplicates(t.boxes(new), top[new], t.boxes(new), top[new], min_iou, same=True)
