@@ -9,7 +9,8 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
-from ltc_cli.pipeline.maintenance import removed_unconfirmed, same_class_overlap
+from ltc_cli.pipeline.maintenance import removed_unconfirmed
+from ltc_cli.pipeline.rejoining import same_class_overlap
 from ltc_cli.pipeline.mapper import Mapper
 from tests.scene import INTR, T_world_camera, render
 from tests.test_identity import CHAIR_FACE, CLASSES, chair_vector

@@ -9,7 +9,7 @@ import pytest
 
 from ltc_cli.config import defaults
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
-from ltc_cli.pipeline.maintenance import earlier_duplicates, join_bars
+from ltc_cli.pipeline.rejoining import earlier_duplicates, join_bars
 from tests.test_reidentify import CLASSES, CUP, MOUSE, row_boxes
 from tests.session_end import end_session
 

@@ -8,7 +8,7 @@ import pytest
 
 from ltc_cli.config import defaults
 from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
-from ltc_cli.pipeline.maintenance import earlier_duplicates
+from ltc_cli.pipeline.rejoining import earlier_duplicates
 from tests.test_reidentify import CLASSES, CUP, MOUSE, row_boxes
 from tests.session_end import end_session
 

@@ -9,7 +9,7 @@ import pytest
 from ltc_cli.config import defaults
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.map.model import ACTIVE, MERGED, REMOVED, SemanticMap
-from ltc_cli.pipeline.maintenance import drifted_match
+from ltc_cli.pipeline.rejoining import drifted_match
 from tests.session_end import end_session
 CLASSES = ["mouse", "cup", "keyboard"]
 MOUSE, CUP = 0, 1

@@ -1,7 +1,7 @@
 """The end of a session (DESIGN.md 1.4): the tentative objects that too few detections confirmed,
 and those the absence rule finds gone, leave the map. A part of
 :class:`~ltc_cli.pipeline.mapper.Mapper`, kept in its own file: the decisions come from
-maintenance.py; these methods apply them to the object table and log them.
+maintenance.py and rejoining.py; these methods apply them to the object table and log them.
 """
 
 from __future__ import annotations
@@ -9,13 +9,11 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.map.model import ACTIVE, REMOVED, top_class
-from ltc_cli.pipeline.maintenance import (
-    absent_in_session, drifted_match, earlier_duplicates, join_bars, removed_unconfirmed, same_class_overlap,
-    small_things, unconfirmed,
-)
+from ltc_cli.pipeline.maintenance import absent_in_session, removed_unconfirmed, unconfirmed
 from ltc_cli.pipeline.reasons import (
     absent_detail, joined_detail, reidentified_detail, removed_by_misses, returned_detail, unconfirmed_detail,
 )
+from ltc_cli.pipeline.rejoining import drifted_match, earlier_duplicates, join_bars, same_class_overlap, small_things
 from ltc_cli.pipeline.views import views_apart
 
 
@@ -86,7 +84,7 @@ class SessionPruning:
     def _return_missed(self, min_detections: int, frame_index: int, frame_key: str) -> int:
         """Objects that non-detections removed in this session return, with their ids, where a new
         object of their class detected at least ``min_detections`` times in it stands on their
-        footprint (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`): the new one merges
+        footprint (:func:`~ltc_cli.pipeline.rejoining.same_class_overlap`): the new one merges
         into the old (counts and class evidence), whose box becomes the new one's.
 
         A removal by eq. 4 is a belief that the thing went; detections of it at its place in the
@@ -141,7 +139,7 @@ class SessionPruning:
     def _reidentify(self, old, unconfirmed_rows, margin: float, frame_index: int, frame_key: str) -> int:
         """An object the absence rule is about to remove (``old``: this session saw it clearly and
         never detected it) takes, with its id, the confirmed new object of its class within
-        ``margin`` metres of its footprint (:func:`~ltc_cli.pipeline.maintenance.drifted_match`):
+        ``margin`` metres of its footprint (:func:`~ltc_cli.pipeline.rejoining.drifted_match`):
         the new one merges into it and gives it its box, where this drive saw the thing. An object
         the session's evidence keeps (a potted plant missed beside one carried next to it, in a
         simulated house) is not the new one. Returns how many."""
@@ -165,8 +163,8 @@ class SessionPruning:
     def _join_earlier(self, unconfirmed_rows, min_iou: float, frame_index: int, frame_key: str,
                       small_iou: float | None = None) -> int:
         """Each confirmed new object whose footprint overlaps an active object of an earlier session
-        of its class by ``min_iou`` (:func:`~ltc_cli.pipeline.maintenance.earlier_duplicates`;
-        ``small_iou`` when both are small, :func:`~ltc_cli.pipeline.maintenance.join_bars`) merges
+        of its class by ``min_iou`` (:func:`~ltc_cli.pipeline.rejoining.earlier_duplicates`;
+        ``small_iou`` when both are small, :func:`~ltc_cli.pipeline.rejoining.join_bars`) merges
         into it: the earlier one keeps its id and its box (the map's reference for the thing; the
         new box is this drive's drifted copy) and takes the new one's detections and class
         evidence. Returns how many."""
@@ -185,7 +183,7 @@ class SessionPruning:
     def _join_within(self, unconfirmed_rows, min_iou: float, frame_index: int, frame_key: str) -> int:
         """Confirmed small objects of this session (longer side at most ``occupied_max_width``)
         whose footprints overlap one of their class by ``min_iou``
-        (:func:`~ltc_cli.pipeline.maintenance.earlier_duplicates`, ``same``) become one: the better
+        (:func:`~ltc_cli.pipeline.rejoining.earlier_duplicates`, ``same``) become one: the better
         seen keeps its id and box and takes the other's detections. A localiser's jitter puts a
         small thing's whole views a few centimetres apart within one drive, and eq. 2's size cap and
         ``max_union_length`` keep the two boxes apart in every frame. Returns how many."""
@@ -206,7 +204,7 @@ class SessionPruning:
     def _confirmed_earlier(self, rows, seen_from, min_detections, min_share, min_views, frame_index, frame_key,
                            apart: bool = False):
         """``rows`` less those an earlier session's unconfirmed object confirms
-        (:func:`~ltc_cli.pipeline.maintenance.same_class_overlap`), which stay (logged).
+        (:func:`~ltc_cli.pipeline.rejoining.same_class_overlap`), which stay (logged).
 
         ``apart`` (confirm_across_views): only objects that had detections enough in their session
         and lacked a second view alone confirm each other, and only when their views taken
