@@ -19,7 +19,8 @@ different things of one class that must stay two boxes (``APART``), and seven mo
 on the ones above say how the map holds on passes it was not tuned on. Its poses come from motion
 capture; three more pairs of sessions (``DRIFT_DRAWS``) put a robot localiser's drift on them (the
 realistic simulator's: 4 cm and 1.5 degrees), a draw for each session, as a robot revisiting the
-room would be off in another way each time.
+room would be off in another way each time. Six more give it a weaker detector, which misses 30 %
+or 50 % of the detections (``WEAKER_SHARES``), a draw for each session.
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -49,7 +50,7 @@ from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
 from tests.real_truth import APART, COUNTS, TUM_FR1_RPY, check, merged_pairs  # noqa: E402
-from tests.replay import Drifted, Reordered, Replay  # noqa: E402
+from tests.replay import Drifted, Reordered, Replay, weaker  # noqa: E402
 
 # ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
 SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
@@ -65,10 +66,6 @@ LANDMARKS = {"tum-fr1-rpy": TUM_FR1_RPY}
 
 class BenchPlugin:
     @hookimpl
-    def register_detectors(self, register):
-        register("replay-yolo", Replay)
-
-    @hookimpl
     def register_readers(self, register):
         register("reversed", Reordered(reverse=True))
         register("every-other", Reordered(step=2))
@@ -80,6 +77,13 @@ class BenchPlugin:
             register(reader, Reordered(**kwargs))
         for seed in {s for pair in DRIFT_DRAWS for s in pair}:
             register(f"drift-{seed}", Drifted(seed, DRIFT_FRAMES))
+
+    @hookimpl
+    def register_detectors(self, register):
+        register("replay-yolo", Replay)
+        for share in WEAKER_SHARES:
+            for seed in {s for pair in DRIFT_DRAWS for s in pair}:
+                register(f"weaker-{share}-{seed}", weaker(seed, share))
 
 
 # Passes first run in the thirty-second round, after every rule of the earlier rounds was set on
@@ -187,6 +191,9 @@ def apart_line(name: str, maps: list) -> list[str]:
 # over DRIFT_FRAMES frames (2 s at 30 Hz).
 DRIFT_DRAWS = ((1, 2), (3, 4), (5, 6))
 DRIFT_FRAMES = 60.0
+# A weaker detector (tests/replay.py weaker): these shares of the detections missed, with the same
+# pairs of draws as the drift (a draw for each session). First run in the fortieth round.
+WEAKER_SHARES = (0.3, 0.5)
 
 
 def drift_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None) -> list[tuple[str, Path]]:
@@ -211,6 +218,31 @@ def drift_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None)
             shutil.copyfile(m1, Path(keep) / f"{name}-drift-{a}.h5")
             shutil.copyfile(m, Path(keep) / f"{name}-drift-{a}-then-{b}.h5")
         maps += [(f"drift {a}", m1), (f"drift {a}, revisit with drift {b}", m)]
+    return maps
+
+
+def weaker_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None) -> list[tuple[str, Path]]:
+    """A session and a revisit with ``DRIFT_DRAWS`` of a detector that misses ``WEAKER_SHARES`` of
+    the detections; print each one's counts and kept ids; (label, map) per session."""
+    maps = []
+    print(f"  with a weaker detector (each detection missed with a probability; {len(DRIFT_DRAWS)} draws, each a "
+          f"session and a revisit with another draw; tests/replay.py weaker):")
+    for share in WEAKER_SHARES:
+        for a, b in DRIFT_DRAWS:
+            m, m1 = tmp / f"{name}-weaker-{share}-{a}-{b}.h5", tmp / f"{name}-weaker-{share}-{a}.h5"
+            ingest([path], m1, load_config(None, [*sets, f"detector.name=weaker-{share}-{a}"]))
+            first, ids1 = census(m1)
+            shutil.copyfile(m1, m)
+            ingest([path], m, load_config(None, [*sets, f"detector.name=weaker-{share}-{b}"]), revisit=True)
+            second, ids2 = census(m)
+            print(f"    {share:.0%} missed, draw {a}: {sum(first.values())} objects ({verdict(name, first)}) -> revisit "
+                  f"with draw {b}: {sum(second.values())} objects ({verdict(name, second)}), ids kept "
+                  f"{len(ids1 & ids2) / max(len(ids1), 1):.0%}")
+            for line in lost_ids(m, ids1 - ids2):
+                print(f"      lost: {line}")
+            if keep:
+                shutil.copyfile(m, Path(keep) / f"{name}-weaker-{share}-{a}-then-{b}.h5")
+            maps += [(f"{share:.0%} missed, draw {a}", m1), (f"{share:.0%} missed, draw {a}, revisit with draw {b}", m)]
     return maps
 
 
@@ -351,6 +383,9 @@ def main():
                     print(line)
                 drift = drift_passes(name, path, tmp, sets, args.keep)
                 for line in landmarks_line(name, drift) + apart_line(name, drift):
+                    print(line)
+                weak = weaker_passes(name, path, tmp, sets, args.keep)
+                for line in landmarks_line(name, weak) + apart_line(name, weak):
                     print(line)
 
 

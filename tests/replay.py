@@ -1,7 +1,7 @@
 """Plugins for passes over one real recording (tests/test_real_revisits.py and
-benchmarks/bench_real.py): the shared model detecting each frame once and replaying it, a reader
-that drives a recording in reverse order, at a lower frame rate, or along part of it, and one that
-puts a localiser's drift on its poses."""
+benchmarks/bench_real.py): the shared model detecting each frame once and replaying it (or a
+weaker detector's share of its detections), a reader that drives a recording in reverse order, at
+a lower frame rate, or along part of it, and one that puts a localiser's drift on its poses."""
 
 from __future__ import annotations
 
@@ -27,6 +27,23 @@ class Replay:
         if key not in self.store:
             self.store[key] = self.inner.detect(frame)
         return self.store[key]
+
+
+def weaker(seed: int, share: float) -> type:
+    """A :class:`Replay` detector that misses each detection with probability ``share``, drawn from
+    ``seed`` and the frame's key: a weaker detector, as the same route would get from a smaller
+    model or in worse light (misses without a pattern: the simulator's are correlated)."""
+
+    def detect(self, frame):
+        import zlib
+
+        import numpy as np
+
+        found = Replay.detect(self, frame)
+        draw = np.random.default_rng([seed, zlib.crc32(frame.key.encode())]).uniform(size=len(found))
+        return [d for d, u in zip(found, draw) if u >= share]
+
+    return type(f"Weaker{seed}", (Replay,), {"detect": detect})
 
 
 class Reordered:
