@@ -196,6 +196,21 @@ DRIFT_FRAMES = 60.0
 WEAKER_SHARES = (0.3, 0.5)
 
 
+def two_drives(name: str, path: Path, m1: Path, m: Path, first: tuple, then: tuple, labels: tuple) -> None:
+    """A session into ``m1`` and, on a copy of it in ``m``, a revisit: ``first`` and ``then`` are
+    (settings, reader) each; print the counts and kept ids under ``labels`` (session, revisit)."""
+    ingest([path], m1, load_config(None, first[0]), reader=first[1])
+    counts1, ids1 = census(m1)
+    shutil.copyfile(m1, m)
+    ingest([path], m, load_config(None, then[0]), reader=then[1], revisit=True)
+    counts2, ids2 = census(m)
+    print(f"    {labels[0]}: {sum(counts1.values())} objects ({verdict(name, counts1)}) -> {labels[1]}: "
+          f"{sum(counts2.values())} objects ({verdict(name, counts2)}), ids kept "
+          f"{len(ids1 & ids2) / max(len(ids1), 1):.0%}")
+    for line in lost_ids(m, ids1 - ids2):
+        print(f"      lost: {line}")
+
+
 def drift_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None) -> list[tuple[str, Path]]:
     """Run ``DRIFT_DRAWS`` on one recording: a session with one draw of the drift, then a revisit
     with another; print each one's counts and kept ids; (label, map) per session."""
@@ -204,16 +219,8 @@ def drift_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None)
           f"with another draw; tests/replay.py Drifted):")
     for a, b in DRIFT_DRAWS:
         m, m1 = tmp / f"{name}-drift-{a}-{b}.h5", tmp / f"{name}-drift-{a}.h5"
-        ingest([path], m1, load_config(None, sets), reader=f"drift-{a}")
-        first, ids1 = census(m1)
-        shutil.copyfile(m1, m)
-        ingest([path], m, load_config(None, sets), reader=f"drift-{b}", revisit=True)
-        second, ids2 = census(m)
-        print(f"    drift {a}: {sum(first.values())} objects ({verdict(name, first)}) -> revisit with drift {b}: "
-              f"{sum(second.values())} objects ({verdict(name, second)}), ids kept "
-              f"{len(ids1 & ids2) / max(len(ids1), 1):.0%}")
-        for line in lost_ids(m, ids1 - ids2):
-            print(f"      lost: {line}")
+        two_drives(name, path, m1, m, (sets, f"drift-{a}"), (sets, f"drift-{b}"),
+                   (f"drift {a}", f"revisit with drift {b}"))
         if keep:
             shutil.copyfile(m1, Path(keep) / f"{name}-drift-{a}.h5")
             shutil.copyfile(m, Path(keep) / f"{name}-drift-{a}-then-{b}.h5")
@@ -230,16 +237,9 @@ def weaker_passes(name: str, path: Path, tmp: Path, sets: list, keep: str | None
     for share in WEAKER_SHARES:
         for a, b in DRIFT_DRAWS:
             m, m1 = tmp / f"{name}-weaker-{share}-{a}-{b}.h5", tmp / f"{name}-weaker-{share}-{a}.h5"
-            ingest([path], m1, load_config(None, [*sets, f"detector.name=weaker-{share}-{a}"]))
-            first, ids1 = census(m1)
-            shutil.copyfile(m1, m)
-            ingest([path], m, load_config(None, [*sets, f"detector.name=weaker-{share}-{b}"]), revisit=True)
-            second, ids2 = census(m)
-            print(f"    {share:.0%} missed, draw {a}: {sum(first.values())} objects ({verdict(name, first)}) -> revisit "
-                  f"with draw {b}: {sum(second.values())} objects ({verdict(name, second)}), ids kept "
-                  f"{len(ids1 & ids2) / max(len(ids1), 1):.0%}")
-            for line in lost_ids(m, ids1 - ids2):
-                print(f"      lost: {line}")
+            two_drives(name, path, m1, m, ([*sets, f"detector.name=weaker-{share}-{a}"], None),
+                       ([*sets, f"detector.name=weaker-{share}-{b}"], None),
+                       (f"{share:.0%} missed, draw {a}", f"revisit with draw {b}"))
             if keep:
                 shutil.copyfile(m, Path(keep) / f"{name}-weaker-{share}-{a}-then-{b}.h5")
             maps += [(f"{share:.0%} missed, draw {a}", m1), (f"{share:.0%} missed, draw {a}, revisit with draw {b}", m)]
