@@ -1,5 +1,7 @@
 """What is wrong in the map's boxes: each match after the last lap rescored with one part of the
-truth put in (its yaw, its centre, or its size and yaw at the map's centre), median XY IoU by class.
+truth put in (its yaw, its centre, or its size and yaw at the map's centre), median XY IoU by class;
+then which way the sizes are off: the map's box over the truth's along the truth's long and short
+footprint sides and its height (quartiles), and the footprint centres' distance.
 
 Reads the maps that ``bench_breakdown.py --keep DIR`` kept (DIR/<house>.h5) and their houses in
 benchmarks/.cache; the part whose truth lifts the IoU most is the part the map gets wrong.
@@ -41,11 +43,23 @@ def rescored(mapped: tuple, truth: tuple) -> dict:
             "truth's centre": xy_iou((c_t, yaw_m, s_m), truth), "truth's size": xy_iou((c_m, yaw_t, s_t), truth)}
 
 
+def size_ratios(mapped: tuple, truth: tuple) -> tuple[float, float, float, float]:
+    """(long, short, height, centre distance): the map box's sizes over the truth's, along the
+    truth's longer and shorter footprint sides (the map box's sides taken in the quarter turn
+    nearest the truth's yaw) and up, and the distance (m) between the footprints' centres."""
+    (c_m, yaw_m, s_m), (c_t, yaw_t, s_t) = mapped, truth
+    turn = (yaw_m - yaw_t) % np.pi
+    s_m = s_m[[1, 0, 2]] if np.pi / 4 < turn < 3 * np.pi / 4 else s_m
+    long_axis = 0 if s_t[0] >= s_t[1] else 1
+    r = s_m / s_t
+    return float(r[long_axis]), float(r[1 - long_axis]), float(r[2]), float(np.hypot(*(c_m[:2] - c_t[:2])))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dirs", nargs="+", type=Path, help="folders of maps kept by bench_breakdown.py --keep")
     args = ap.parse_args(argv)
-    rows = defaultdict(list)
+    rows, ratios = defaultdict(list), defaultdict(list)
     for folder in args.dirs:
         if not any(folder.glob("*.h5")):
             print(f"{folder}: no maps (*.h5) here; make them with bench_breakdown.py --keep", file=sys.stderr)
@@ -63,6 +77,7 @@ def main(argv=None) -> int:
             for match in res["matches"]:
                 t = truth[match["gt_id"]]
                 rows[t["class"]].append(rescored(as_box(mapped[match["map_id"]]), as_box(t)))
+                ratios[t["class"]].append(size_ratios(as_box(mapped[match["map_id"]]), as_box(t)))
     keys = ["as mapped", "truth's yaw", "truth's centre", "truth's size"]
     print(f"{'class':<14}{'matches':>8}" + "".join(f"{k:>16}" for k in keys) + f"{'<= 0.25':>9}")
     everything = [r for rs in rows.values() for r in rs]
@@ -71,6 +86,13 @@ def main(argv=None) -> int:
         print(f"{name:<14}{len(rs):>8}{medians}{sum(r['as mapped'] <= 0.25 for r in rs):>9}")
     for k in keys[1:]:
         print(f"at or under 0.25 with the {k}: {sum(r[k] <= 0.25 for r in everything)} of {len(everything)}")
+    print()
+    print(f"{'class':<14}{'matches':>8}" + "".join(f"{k:>18}" for k in ("long side", "short side", "height"))
+          + f"{'centre off (m)':>18}   (map / truth, quartiles)")
+    for name, rs in sorted(ratios.items(), key=lambda kv: -len(kv[1])):
+        a = np.asarray(rs)
+        cols = "".join(f"{'%.2f %.2f %.2f' % tuple(np.percentile(a[:, j], [25, 50, 75])):>18}" for j in range(4))
+        print(f"{name:<14}{len(rs):>8}{cols}")
     return 0
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
-from bench_box_errors import rescored  # noqa: E402
+from bench_box_errors import rescored, size_ratios  # noqa: E402
 
 
 def box(x, y, yaw, sx, sy):
@@ -37,3 +37,20 @@ def test_a_box_twice_too_wide():
     r = rescored(box(0, 0, 0, 2, 1), box(0, 0, 0, 1, 1))
     assert r["as mapped"] == pytest.approx(0.5) and r["truth's centre"] == pytest.approx(0.5)
     assert r["truth's size"] == pytest.approx(1.0)
+
+
+def test_size_ratios_along_the_truths_long_and_short_sides():
+    """A 0.6 x 1.5 x 1.0 m box turned 90 degrees, 0.3 m east and 0.4 m north of a 1.0 x 0.5 x 1.0 m
+    truth (long side along x): turned back, its sides are 1.5 m along the truth's long side (1.5)
+    and 0.6 m along the short one (1.2); height 1.0; the centres 0.5 m apart (a 3-4-5 triangle)."""
+    long_, short, height, off = size_ratios((np.array([0.3, 0.4, 0.5]), np.pi / 2, np.array([0.6, 1.5, 1.0])),
+                                            (np.array([0.0, 0.0, 0.5]), 0.0, np.array([1.0, 0.5, 1.0])))
+    assert (long_, short, height, off) == pytest.approx((1.5, 1.2, 1.0, 0.5))
+
+
+def test_size_ratios_when_the_truths_long_side_is_its_y():
+    """The truth 0.5 x 2.0 m (long along y), the map 0.5 x 1.0 m at its yaw: the long side is half
+    the truth's, the short one equal."""
+    long_, short, _, off = size_ratios((np.zeros(3), 0.0, np.array([0.5, 1.0, 1.0])),
+                                       (np.zeros(3), 0.0, np.array([0.5, 2.0, 1.0])))
+    assert (long_, short, off) == pytest.approx((0.5, 1.0, 0.0))
