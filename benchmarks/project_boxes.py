@@ -3,6 +3,9 @@
     python benchmarks/project_boxes.py MAP.h5 RECORDING -o out.png [--frames 0,50,100,150] [--cols 2] [--ids 3,7]
         [-r KEY=VALUE]...   (reader options, as for ltc ingest: -r intrinsics=518,519,325.5,253.5)
 
+Without --frames, four frames spread evenly over the recording (all of them when it has fewer);
+an index past the end means the last frame, and each frame is drawn once.
+
 Each active object is drawn as its 12 box edges with ``id class``; vertices behind the camera are
 skipped. The map's up rotation is applied to the recording's poses, as ingest does.
 """
@@ -59,12 +62,22 @@ def draw(smap, frame, T_up, ids=None):
     return img
 
 
+def frame_indices(spec: str | None, count: int, default_count: int = 4) -> list[int]:
+    """The frames to draw, in order and each once: ``spec``'s comma-separated indices (past the end:
+    the last frame), or ``default_count`` spread evenly from the first frame to the last."""
+    if spec:
+        wanted = [min(int(x), count - 1) for x in spec.split(",") if x.strip()]
+    else:
+        wanted = np.linspace(0, count - 1, min(default_count, count)).round().astype(int).tolist()
+    return list(dict.fromkeys(wanted))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("map")
     ap.add_argument("recording")
     ap.add_argument("-o", "--output", required=True)
-    ap.add_argument("--frames", default="0,60,120,180")
+    ap.add_argument("--frames", default=None, help="frame indices, comma-separated (default: four spread evenly)")
     ap.add_argument("--cols", type=int, default=2)
     ap.add_argument("--scale", type=float, default=0.6)
     ap.add_argument("--ids", default="", help="only these object ids (comma-separated; default all)")
@@ -76,8 +89,8 @@ def main():
     T_up = np.eye(4)
     T_up[:3, :3] = smap.up_rotation
     tiles = []
-    for i in [int(x) for x in args.frames.split(",")]:
-        frame = rec.frames[min(i, len(rec.frames) - 1)].load()
+    for i in frame_indices(args.frames, len(rec.frames)):
+        frame = rec.frames[i].load()
         img = draw(smap, frame, T_up, {int(x) for x in args.ids.split(",") if x})
         tiles.append(cv2.resize(img, None, fx=args.scale, fy=args.scale, interpolation=cv2.INTER_AREA))
     while len(tiles) % args.cols:
