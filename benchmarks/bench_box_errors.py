@@ -21,6 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
+from ltc_cli.geometry.boxes import align_yaw  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
 from ltc_cli.recordings.groundtruth import read_ground_truth  # noqa: E402
 from ltc_cli.tools.evaluate import evaluate_map, map_objects, xy_iou  # noqa: E402
@@ -33,18 +34,11 @@ def as_box(obj: dict) -> tuple:
     return np.asarray(obj["center"], float), float(obj["yaw"]), np.asarray(obj["size"], float)
 
 
-def sides_at(yaw_ref: float, yaw: float, size: np.ndarray) -> np.ndarray:
-    """size (3,) of a box turned ``yaw``, its x and y swapped when it lies nearer a quarter turn
-    from ``yaw_ref``: its sides along the axes of a box turned ``yaw_ref``."""
-    turn = (yaw - yaw_ref) % np.pi
-    return size[[1, 0, 2]] if np.pi / 4 < turn < 3 * np.pi / 4 else size
-
-
 def rescored(mapped: tuple, truth: tuple) -> dict:
     """XY IoU of a map box (center (3,), yaw, size (3,)) against the truth's, as it is and with the
     truth's yaw (sides swapped when the two are nearer a quarter turn apart), centre, or size."""
     (c_m, yaw_m, s_m), (c_t, yaw_t, s_t) = mapped, truth
-    s_turned = sides_at(yaw_t, yaw_m, s_m)
+    s_turned = align_yaw(yaw_t, yaw_m, s_m)[1]
     return {"as mapped": xy_iou(mapped, truth), "truth's yaw": xy_iou((c_m, yaw_t, s_turned), truth),
             "truth's centre": xy_iou((c_t, yaw_m, s_m), truth), "truth's size": xy_iou((c_m, yaw_t, s_t), truth)}
 
@@ -54,7 +48,7 @@ def size_ratios(mapped: tuple, truth: tuple) -> tuple[float, float, float, float
     truth's longer and shorter footprint sides (the map box's sides taken in the quarter turn
     nearest the truth's yaw) and up, and the distance (m) between the footprints' centres."""
     (c_m, yaw_m, s_m), (c_t, yaw_t, s_t) = mapped, truth
-    s_m = sides_at(yaw_t, yaw_m, s_m)
+    s_m = align_yaw(yaw_t, yaw_m, s_m)[1]
     long_axis = 0 if s_t[0] >= s_t[1] else 1
     r = s_m / s_t
     return float(r[long_axis]), float(r[1 - long_axis]), float(r[2]), float(np.hypot(*(c_m[:2] - c_t[:2])))
@@ -81,8 +75,9 @@ def main(argv=None) -> int:
             truth = {o["id"]: o for o in truths[-1]["objects"]}
             for match in res["matches"]:
                 t = truth[match["gt_id"]]
-                rows[t["class"]].append(rescored(as_box(mapped[match["map_id"]]), as_box(t)))
-                ratios[t["class"]].append(size_ratios(as_box(mapped[match["map_id"]]), as_box(t)))
+                boxes = as_box(mapped[match["map_id"]]), as_box(t)
+                rows[t["class"]].append(rescored(*boxes))
+                ratios[t["class"]].append(size_ratios(*boxes))
     keys = ["as mapped", "truth's yaw", "truth's centre", "truth's size"]
     print(f"{'class':<14}{'matches':>8}" + "".join(f"{k:>16}" for k in keys) + f"{'<= 0.25':>9}")
     everything = [r for rs in rows.values() for r in rs]
