@@ -70,6 +70,7 @@ class AssociationSettings(TypedDict):
     other_class_volume_ratio: Optional[float]
     partial_adjoin_gap: Optional[float]
     adjoin_max_turn: dict[str, float]
+    adjoin_except: list[str]
     partial_adjoin_share: Optional[dict[str, float]]
     adjoin_same_frame: bool
     merge_other_class_iou: Optional[float]

@@ -71,7 +71,7 @@ class DetectionAssociation:
                                     a_cfg["other_class_volume_ratio"]) & ~unlike
         best = containing_candidate(containment(det, cand), cand_classes == det_class, a_cfg["containment"],
                                     a_cfg["containment_other_class"], comparable)
-        if best < 0 and not det_defined:
+        if best < 0 and not det_defined and not self.per_class.no_adjoin[det_class]:
             long_sides = np.maximum(det.size[0, :2].max(), cand.size[:, :2].max(axis=1))
             pieces = ~t.defined[rows] & ~too_long & (True if a_cfg["adjoin_same_frame"] else ~this_frame)
             if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
