@@ -6,13 +6,9 @@ frame, the front monitor's screen (0.6 x 0.1 m) adjoined the second monitor's pa
 import numpy as np
 import pytest
 
-from ltc_cli import plugins
 from ltc_cli.config import defaults
-from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.map.model import ACTIVE, SemanticMap
-from ltc_cli.pipeline.association import footprint_gaps, long_axis_turns
-from ltc_cli.pipeline.mapper import Mapper
-from tests.scene import INTR, T_world_camera, render
+from ltc_cli.pipeline.association import long_axis_turns
+from tests.adjoin_check import mapper_with_piece, view_beside_piece
 
 TV = np.array([1.0, 0.0, 0.0])  # over ["tv", "chair"] and other
 SCREEN = (2.0, 2.02, -0.6, 0.0, 0.9, 1.2)  # its face 2 m ahead, y -0.6 .. 0, z 0.9 .. 1.2
@@ -30,22 +26,15 @@ def test_long_axis_turns_by_hand():
     assert long_axis_turns(0.0, screen, yaws[:1], sizes[:1], 2.0)[0] == 0.0
 
 
-def mapper_with_piece(turn_deg, limits):
+def piece_mapper(turn_deg, limits):
     """A map holding a partial "tv" 0.41 x 0.1 x 0.3 m whose near end lies 3 cm past the screen's
     end (y 0.03), its long axis turned ``turn_deg`` from the screen's (along y)."""
     cfg = defaults()
     cfg["association"]["adjoin_max_turn"] = limits
-    smap = SemanticMap.new(["tv", "chair"])
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]))
     a = np.radians(90.0 + turn_deg)
     axis = np.array([np.cos(a), np.sin(a)])
     center = np.r_[np.array([2.05, 0.03]) + 0.205 * axis, 1.05]
-    size = np.array([0.41, 0.1, 0.3])
-    row = smap.objects.append(center=center, yaw=a - np.pi, size=size, visible=np.zeros(8, bool), defined=False,
-                              scores=TV, n_det=5, n_nondet=0, status=ACTIVE)
-    mapper.index.insert(row, center, size)
-    return mapper
+    return mapper_with_piece(cfg, ["tv", "chair"], center, a - np.pi, [0.41, 0.1, 0.3], TV)
 
 
 @pytest.mark.parametrize("turn, limits, joins", [
@@ -55,19 +44,6 @@ def mapper_with_piece(turn_deg, limits):
     (18.0, {"chair": 10.0}, True),  # the rule for another class
 ])
 def test_a_screen_adjoins_a_piece_along_its_line_only(turn, limits, joins):
-    """The screen's footprint ends at y 0 (plus thinning's width back), the piece's 3 cm on."""
-    mapper = mapper_with_piece(turn, limits)
-    t = mapper.map.objects
-    piece = t.boxes(np.array([0]))
-    depth, masks = render([SCREEN], wall_x=4.0)
-    res = mapper.process_frame(1, "f1", masks, [TV], depth, T_world_camera(), INTR, (0.3, 6.0))
-    if joins:
-        assert (res.created, res.matched) == (0, 1)
-        assert t.boxes(np.array([0])).corners[0][:, 1].min() < -0.55  # the piece's box took the screen
-        return
-    assert (res.created, res.matched) == (1, 0)
-    np.testing.assert_allclose(t.center[0], piece.center[0])
-    np.testing.assert_allclose(t.size[0], piece.size[0])
-    # The rule, not the gap, kept them apart: the new screen's box lies within partial_adjoin_gap.
-    gap = footprint_gaps(t.boxes(np.array([1])), Boxes(piece.center, piece.yaw, piece.size, piece.visible))[0]
-    assert 0.0 <= gap <= mapper.cfg["association"]["partial_adjoin_gap"]
+    """The screen's footprint ends at y 0 (plus thinning's width back), the piece's 3 cm on; joined,
+    the piece's box takes the screen."""
+    view_beside_piece(piece_mapper(turn, limits), SCREEN, TV, joins, reach_y=-0.55)
