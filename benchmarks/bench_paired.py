@@ -34,7 +34,7 @@ import numpy as np  # noqa: E402
 
 import bench_accuracy as acc  # noqa: E402
 
-#: (scene, first seed, houses): the eight sets of bench_issue9.py and the third held-out set, and the
+#: (scene, first seed, houses): the six sets of bench_issue9.py and the third held-out set, and the
 #: fresh set 501-508 (eight houses each, first used in issue 9's forty-second round).
 SETS = [(scene, seed, 4) for seed in (101, 201, 301, 401) for scene in ("small", "medium")] \
     + [("small", 501, 8), ("medium", 501, 8)]
