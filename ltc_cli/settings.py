@@ -92,6 +92,7 @@ class AssociationSettings(TypedDict):
     stand_inside_parts: bool
     stand_confirmed: bool
     merge_part_under: bool
+    merge_recheck: bool
     part_label_share: Optional[float]
     container_max_width: Optional[dict[str, float]]
     merge_containment: Optional[float]

@@ -138,10 +138,15 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     return sorted(pairs)
 
 
-def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray, survivor=None) -> list[tuple[int, int]]:
+def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray, survivor=None,
+                  disjoint: bool = False) -> list[tuple[int, int]]:
     """(keep, drop) index pairs from :func:`duplicate_pairs`, closest first, each object at most
     once dropped. The older object (smaller id) keeps its id, unless ``survivor(older, newer)``
-    (indices) names the newer one (see :func:`label_survivor`)."""
+    (indices) names the newer one (see :func:`label_survivor`).
+
+    ``disjoint``: each object in at most one of the merges, kept or dropped. A merge changes the
+    kept box, and the pairs were found on the boxes before it: a later pair of the kept object may
+    no longer hold. The caller finds the pairs again on the merged boxes."""
     gone: set = set()
     out = []
     for _, a, b in pairs:
@@ -152,6 +157,8 @@ def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray, survivor
         drop = newer if keep == older else older
         out.append((keep, drop))
         gone.add(drop)
+        if disjoint:
+            gone.add(keep)
     return out
 
 

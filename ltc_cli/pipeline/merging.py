@@ -27,11 +27,26 @@ class InstanceMerging:
     ``metric``, ``per_class``, ``rates``, ``index``, ``session`` and the helpers these methods call)."""
 
     def _merge_in_view(self, frame_index, frame_key, T_camera_map, intr, max_depth) -> int:
-        """Instance de-duplication: in-view map objects that now match each other become one."""
+        """Instance de-duplication: in-view map objects that now match each other become one. With
+        ``merge_recheck``, in rounds: each object in one merge per round, the pairs found again on
+        the merged boxes, until none is left."""
         t = self.map.objects
         rows = self._candidates(invert_pose(T_camera_map), T_camera_map, intr, max_depth)
         if rows.size < 2:
             return 0
+        recheck = bool(self.cfg["association"]["merge_recheck"])
+        done = 0
+        while rows.size >= 2:
+            merged = self._merge_round(rows, frame_index, frame_key, recheck)
+            done += merged
+            rows = rows[t.status[rows] == ACTIVE]
+            if not merged or not recheck:
+                break
+        return done + self._merge_stands(rows[t.status[rows] == ACTIVE], frame_index, frame_key)
+
+    def _merge_round(self, rows: np.ndarray, frame_index, frame_key, disjoint: bool) -> int:
+        """One round of :meth:`_merge_in_view` over ``rows`` (active, in view): the merges it made."""
+        t = self.map.objects
         a_cfg = self.cfg["association"]
         top = top_class(t.scores[rows])
         # defined_min_width holds for map objects too: a Defined "couch" end of a bed that its class
@@ -44,7 +59,7 @@ class InstanceMerging:
                             self.per_class.container_width, t.n_det[rows], self.per_class.max_union)
         if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
             pairs = self._not_seen_apart(rows, pairs)
-        merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b))
+        merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b), disjoint)
         pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
                                                                           if key < PIECES_KEY}
         if a_cfg["merge_part_under"] and a_cfg["stand_gap"] is not None:
@@ -52,7 +67,7 @@ class InstanceMerging:
         for keep, drop in merges:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key,
                          pieces=(min(keep, drop), max(keep, drop)) in pieces)
-        return len(merges) + self._merge_stands(rows[t.status[rows] == ACTIVE], frame_index, frame_key)
+        return len(merges)
 
     def _not_seen_apart(self, rows: np.ndarray, pairs: list) -> list:
         """The merge pairs (key, a, b) over ``rows`` less those :func:`seen_elsewhere` parts: two
