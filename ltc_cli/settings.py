@@ -159,6 +159,7 @@ class MaintenanceSettings(TypedDict):
     through_margin: float
     nondet_through_share: Optional[float]
     nondet_through_holes: bool
+    absent_holes_share: Optional[float]
     occupied_margin: Optional[float]
     occupied_lift: float
     occupied_share: float

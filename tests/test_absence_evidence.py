@@ -10,7 +10,7 @@ import pytest
 from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
-from ltc_cli.pipeline.maintenance import absent_in_session, count_absence_views
+from ltc_cli.pipeline.maintenance import absent_in_session, count_absence_views, hole_shares, own_holes
 from ltc_cli.pipeline.mapper import Mapper
 from ltc_cli.pipeline.visibility import pixel_counts
 from tests.scene import INTR, T_world_camera, render
@@ -65,13 +65,13 @@ def test_count_absence_views_by_hand():
     assert cols["through_since_det"].tolist() == [0, 4, 1]
 
 
-def old_chair_in_session_1(cfg):
-    """(object table, row, mapper): a chair of session 0 detected 50 times, and a mapper of
-    session 1 over the map."""
+def old_chair_in_session_1(cfg, **columns):
+    """(object table, row, mapper): a chair of session 0 detected 50 times (with more ``columns``
+    of the object table), and a mapper of session 1 over the map."""
     smap = SemanticMap.new(CLASSES)
     t = smap.objects
     row = t.append(center=CHAIR_BOX[0], yaw=0.0, size=CHAIR_BOX[1], visible=np.ones(8, bool), defined=True,
-                   scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0)
+                   scores=chair_vector(), n_det=50, status=ACTIVE, first_session=0, last_session=0, **columns)
     mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
                     plugins.get("policies", "non-detection").factory(cfg["maintenance"]), session=1)
     return t, row, mapper
@@ -196,3 +196,49 @@ def test_a_miss_where_the_depth_has_no_reading_does_not_count(holes, dark, nonde
     mapper.process_frame(0, "0", [], [], depth, T_world_camera(), INTR, (0.3, 6.0))
     assert t.n_nondet[row] == nondets
     assert t.n_clear[row] == 1  # clearly visible either way (17600 >= half of 28800)
+
+
+def test_hole_shares_and_own_holes_by_hand():
+    np.testing.assert_allclose(hole_shares([60, 0, 0], [40, 0, 10]), [0.4, 0.0, 1.0])
+    # Means 20 / 50 = 0.4, 2 / 10 = 0.2, none yet.
+    assert list(own_holes([20.0, 2.0, 0.0], [50, 10, 0], 0.3)) == [True, False, False]
+    assert list(own_holes([20.0, 2.0, 0.0], [50, 10, 0], 0.2)) == [True, True, False]
+    assert not own_holes([20.0, 2.0, 0.0], [50, 10, 0], None).any()
+
+
+@pytest.mark.parametrize("baseline, share, expected, seen_through", [
+    (0.0, 0.3, REMOVED, 6),   # its detected views had depth all over its box: the wall is its place seen empty
+    (0.4, 0.3, ACTIVE, 0),    # 40 % of its box had no depth when detected (a dark screen): the holes are its
+                              # own, and 17600 / 28800 = 0.61 seen through is under absent_through_share 0.75
+    (0.2, 0.3, REMOVED, 6),   # 20 % is under the 0.3 of the setting
+    (0.4, None, REMOVED, 6),  # the setting off
+])
+def test_holes_that_are_the_things_own_are_no_view_of_its_place(baseline, share, expected, seen_through):
+    """maintenance.absent_holes_share (forty-third round): two simulated televisions, dark screens
+    without depth, went as absent because the wall around the screen inside the box was all the
+    depth showed. Here the chair's box in dark_left_depth, in 6 frames: at stage 4's ray_step 8,
+    17600 of its 28800 pixels read the wall at 4 m (past its middle) and 11200 have no reading."""
+    cfg = defaults()
+    cfg["maintenance"]["absent_after_views"] = 5
+    cfg["maintenance"]["absent_through_views"] = 2
+    cfg["maintenance"]["absent_holes_share"] = share
+    t, row, mapper = old_chair_in_session_1(cfg, n_clear_det=50, det_holes=50 * baseline)
+    for k in range(6):
+        mapper.process_frame(k, str(k), [], [], dark_left_depth(), T_world_camera(), INTR, (0.3, 6.0))
+    mapper.prune_unconfirmed(2, -1, "end", None)
+    assert t.status[row] == expected
+    assert t.through_since_det[row] == seen_through
+    assert t.n_nondet[row] == 0  # eq. 4 counts the holes already (nondet_through_holes): no miss either way
+
+
+def test_a_detected_view_adds_its_share_of_holes():
+    """The chair detected in a frame whose depth has no reading left of column 305: at stage 4's
+    ray_step 8 its box samples 28800 pixels, 11200 without a reading (as in
+    test_a_miss_where_the_depth_has_no_reading_does_not_count), so det_holes grows by 11200 / 28800."""
+    t, row, mapper = old_chair_in_session_1(defaults())
+    depth, masks = render([CHAIR_FACE], wall_x=4.0)
+    depth[:, :305] = 0.0
+    res = mapper.process_frame(0, "0", masks, [chair_vector()], depth, T_world_camera(), INTR, (0.3, 6.0))
+    assert (res.matched, res.created) == (1, 0)
+    assert t.n_clear_det[row] == 1
+    assert t.det_holes[row] == pytest.approx(11200 / 28800)

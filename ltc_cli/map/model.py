@@ -22,7 +22,8 @@ ACTIVE, REMOVED, MERGED = 0, 1, 2
 
 # Columns added after format 1: a map written before them reads them as zeros.
 ADDED_COLUMNS = frozenset({"n_clear", "nondet_view", "clear_session", "clear_in_session", "clear_since_det",
-                           "det_view", "det_views", "through_since_det", "n_clear_det", "det_span", "n_flat"})
+                           "det_view", "det_views", "through_since_det", "n_clear_det", "det_span", "n_flat",
+                           "det_holes"})
 
 
 STATUS_NAMES = {ACTIVE: "active", REMOVED: "removed", MERGED: "merged"}
@@ -43,6 +44,9 @@ COLUMNS = {
     # Of those, the frames in which it was detected: the hit rate is n_clear_det / n_clear. Misses
     # count as non-detections only from a new view, so n_clear - n_nondet overstates the hits.
     "n_clear_det": ((), np.int64),
+    # Over those frames, the sum of the share of its box's pixels without a depth reading: a dark
+    # screen or a shiny basin gives none, and its holes are then its own (maintenance.absent_holes_share).
+    "det_holes": ((), np.float64),
     # Camera position (3) and forward axis (3) at the object's last counted non-detection (zeros:
     # none yet): misses from nearly the same view are one piece of evidence, not several.
     "nondet_view": ((6,), np.float64),

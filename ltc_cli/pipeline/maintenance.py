@@ -269,6 +269,23 @@ def seen_empty(visible_px: np.ndarray, empty_px: np.ndarray, share: float | None
     return (np.asarray(visible_px) > 0) & (np.asarray(empty_px) >= share * np.asarray(visible_px))
 
 
+def hole_shares(visible_px: np.ndarray, unread_px: np.ndarray) -> np.ndarray:
+    """(M,) the share of each box's unhidden pixels in range where the depth has no reading."""
+    visible_px, unread_px = np.asarray(visible_px, float), np.asarray(unread_px, float)
+    total = visible_px + unread_px
+    return np.divide(unread_px, total, out=np.zeros(len(total)), where=total > 0)
+
+
+def own_holes(det_holes: np.ndarray, n_clear_det: np.ndarray, min_share: float | None) -> np.ndarray:
+    """(M,) bool: objects whose box, in the clear views that detected them, had on average at least
+    ``min_share`` of its pixels without depth (:func:`hole_shares`): the holes are the thing's own
+    (a dark screen), so holes where it stands are no evidence that its place is empty. None: none."""
+    n = np.asarray(n_clear_det, float)
+    if min_share is None:
+        return np.zeros(len(n), dtype=bool)
+    return (n > 0) & (np.asarray(det_holes, float) >= min_share * n)
+
+
 def absent_in_session(active: np.ndarray, first_session: np.ndarray, last_session: np.ndarray,
                       clear_session: np.ndarray, clear_in_session: np.ndarray, session: int, views,
                       clear_since_det: np.ndarray | None = None, quiet_sessions: int | None = None,

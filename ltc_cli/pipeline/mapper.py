@@ -25,7 +25,7 @@ from ltc_cli.pipeline.merging import InstanceMerging
 from ltc_cli.pipeline.pruning import SessionPruning
 from ltc_cli.pipeline.maintenance import (
     count_absence_views, found_again, held_by_depth, in_view, non_detection_vectors, other_leads, other_outweighs,
-    seen_empty, tentative, view_counts,
+    hole_shares, own_holes, seen_empty, tentative, view_counts,
 )
 from ltc_cli.pipeline.views import camera_view, new_view, span_views, widen_span
 from ltc_cli.pipeline.pictures import PICTURE_MARGIN, is_picture, picture_hits
@@ -172,15 +172,16 @@ class Mapper(DetectionAssociation, InstanceMerging, BoxIntegration, SessionPruni
         rows = np.array(in_view_rows, dtype=np.int64)
         if rows.size:
             matched = np.array([r in matched_rows for r in rows])
-            missed, clear, empty, clear_absent, seen_through, held = self._missed(
+            missed, clear, empty, clear_absent, seen_through, held, holes = self._missed(
                 rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index)
             vectors = self.rates.vectors()
             empty_vectors = self._empty_vectors if self._empty_vectors is not None else vectors
             cols = self.map.objects.cols
-            for row, hit in zip(rows[clear], matched[clear]):
+            for row, hit, share in zip(rows[clear], matched[clear], holes[clear]):
                 self.rates.touch(int(row))
                 cols["n_clear"][row] += 1
                 cols["n_clear_det"][row] += int(hit)
+                cols["det_holes"][row] += share if hit else 0.0
             count_absence_views(cols, rows, clear_absent, matched, seen_through & ~held, self.session)
             # A stale box moves to a detection nearby when its place is seen through, whatever stands
             # within the drift margin: that may be the thing itself, where the detection is.
@@ -244,12 +245,15 @@ class Mapper(DetectionAssociation, InstanceMerging, BoxIntegration, SessionPruni
             t, view = self.map.objects, camera_view(T_map_camera)
             missed &= empty | new_view(t.nondet_view[rows], view, m_cfg["nondet_min_move"], m_cfg["nondet_min_turn"])
             t.cols["nondet_view"][rows[missed]] = view
-        through = seen_empty(vis_absent, through_px, m_cfg["absent_through_share"]) if through_px is not None \
-            else np.zeros(len(rows), dtype=bool)
+        # Holes in the depth are no view of the place, when the thing makes them itself.
+        t = self.map.objects
+        own = own_holes(t.det_holes[rows], t.n_clear_det[rows], m_cfg["absent_holes_share"])
+        through = seen_empty(vis_absent + np.where(own, unread, 0), through_px, m_cfg["absent_through_share"]) \
+            if through_px is not None else np.zeros(len(rows), dtype=bool)
         # Where the camera saw through most of what it saw of the box, the depth says the place is
         # empty: that is no detector's silence, and a part of the box is enough to say so.
         clear_absent = (vis_absent >= need) | (through & ~held & (vis_absent >= need_through))
-        return missed, vis_px >= need, empty, clear_absent, through, held
+        return missed, vis_px >= need, empty, clear_absent, through, held, hole_shares(vis_absent, unread)
 
     # -- applying decisions ------------------------------------------------------------------
     def _remove(self, row, frame_index, frame_key, detail) -> None:

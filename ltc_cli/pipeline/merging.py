@@ -126,7 +126,7 @@ class InstanceMerging:
             keep, drop = int(rows[keep]), int(rows[drop])
             self.rates.touch(keep)
             self.rates.touch(drop)
-            for col in ("n_det", "n_clear", "n_clear_det", "n_flat"):
+            for col in ("n_det", "n_clear", "n_clear_det", "n_flat", "det_holes"):
                 t.cols[col][keep] += t.cols[col][drop]
             self._seen(keep, frame_index)
             self._set_status(drop, MERGED)
@@ -220,7 +220,7 @@ class InstanceMerging:
         box, scores = self._merged(min(keep, drop), max(keep, drop), pieces)
         t.set_box(keep, box)
         t.cols["scores"][keep] = scores
-        for col in ("n_det", "n_nondet", "n_clear", "n_clear_det", "n_flat"):
+        for col in ("n_det", "n_nondet", "n_clear", "n_clear_det", "n_flat", "det_holes"):
             t.cols[col][keep] += t.cols[col][drop]
         if t.det_views[drop] > 0:
             span = t.det_span[drop] if t.det_views[keep] == 0 else union_span(t.det_span[keep], t.det_span[drop])
