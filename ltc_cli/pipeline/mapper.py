@@ -217,13 +217,15 @@ class Mapper(DetectionAssociation, InstanceMerging, BoxIntegration, SessionPruni
         return len(gone)
 
     def _missed(self, rows, matched, T_map_camera, depth_m, intr, depth_range, frame_index=0):
-        """(missed, clear, empty, clear for the absence rule, seen through for it, held), each (M,)
-        bool over in-view rows: which get a non-detection, as the maintenance policy decides; which
-        were clearly visible (enough pixels to say so); which of the missed ones the depth showed to
-        be free space; which were clearly visible by ``hidden_by_whole_box`` ("absence": by the
-        whole-box rule); which of those the camera saw through (absent_through_share of the pixels
-        past the box's middle); and which small things the depth shows standing within the drift
-        margin of their box (``held_by_depth``: neither a miss nor seen through for the absence rule)."""
+        """(missed, clear, empty, clear for the absence rule, seen through for it, held, holes), each
+        (M,) over in-view rows, bool but the last: which get a non-detection, as the maintenance
+        policy decides; which were clearly visible (enough pixels to say so); which of the missed
+        ones the depth showed to be free space; which were clearly visible by
+        ``hidden_by_whole_box`` ("absence": by the whole-box rule); which of those the camera saw
+        through (absent_through_share of the pixels past the box's middle); which small things the
+        depth shows standing within the drift margin of their box (``held_by_depth``: neither a
+        miss nor seen through for the absence rule); and the share of each box's pixels without a
+        depth reading (:func:`hole_shares`)."""
         m_cfg = self.cfg["maintenance"]
         boxes = self.map.objects.boxes(rows)
         vis_px, need, empty_px, vis_absent, through_px, need_through, unread = view_counts(
