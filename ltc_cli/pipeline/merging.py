@@ -42,7 +42,7 @@ class InstanceMerging:
             rows = rows[t.status[rows] == ACTIVE]
             if not merged or not recheck:
                 break
-        return done + self._merge_stands(rows[t.status[rows] == ACTIVE], frame_index, frame_key)
+        return done + self._merge_stands(rows, frame_index, frame_key)  # rows: the active ones by now
 
     def _merge_round(self, rows: np.ndarray, frame_index, frame_key, disjoint: bool) -> int:
         """One round of :meth:`_merge_in_view` over ``rows`` (active, in view): the merges it made."""
