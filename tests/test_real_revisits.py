@@ -69,6 +69,30 @@ def session(tmp_path_factory):
     plugins.unregister_plugin("test-real-revisits")
 
 
+@pytest.fixture(scope="module")
+def first_sessions(session, tmp_path_factory):
+    """The map after one session with a reader, made once per reader for the module (a pass costs
+    7 s): ``first_sessions(reader)`` gives its path, which tests read, or copy before a revisit.
+    A first session with defaults is also the first session of any config whose changes act only
+    on objects of earlier sessions (``maintenance.reidentify_margin``, ``earlier_overlap_iou``,
+    ``earlier_small_overlap_iou``: ltc_cli/pipeline/pruning.py applies them to those alone)."""
+    made: dict[str, Path] = {}
+
+    def first(reader: str) -> Path:
+        if reader not in made:
+            made[reader] = tmp_path_factory.mktemp(f"first-{reader}") / "map.h5"
+            session(reader, made[reader])
+        return made[reader]
+
+    return first
+
+
+def copy_of(first: Path, tmp_path) -> Path:
+    m = tmp_path / "map.h5"
+    shutil.copyfile(first, m)
+    return m
+
+
 def census(m) -> tuple[Counter, set]:
     smap = load_map(m)
     rows = np.flatnonzero(smap.objects.status == ACTIVE)
@@ -88,11 +112,14 @@ def cached_config(key: str | None = None, value=None):
     return load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *overrides])
 
 
-def drive_and_revisit(first: str, then: str, cfg, tmp_path):
-    """A session with reader ``first``, then a revisit with ``then``, into one map: (map, counts and
-    ids after each)."""
+def drive_and_revisit(reader: str, then: str, cfg, tmp_path, first: Path | None = None):
+    """A session with ``reader``, then a revisit with ``then``, into one map: (map, counts and ids
+    after each). With ``first``, the first session is that map's copy (see ``first_sessions``)."""
     m = tmp_path / "map.h5"
-    ingest([DATA], m, cfg, reader=first)
+    if first is None:
+        ingest([DATA], m, cfg, reader=reader)
+    else:
+        shutil.copyfile(first, m)
     counts1, ids1 = census(m)
     ingest([DATA], m, cfg, reader=then, revisit=True)
     return (m, counts1, ids1, *census(m))
@@ -103,13 +130,13 @@ def misplaced(m) -> list[str]:
     return [f"{lm.name}: {where}" for lm, ok, where in check(load_map(m)) if not ok]
 
 
-def test_forward_then_reversed_then_half_rate_sessions_keep_every_id(session, tmp_path):
+def test_forward_then_reversed_then_half_rate_sessions_keep_every_id(session, first_sessions, tmp_path):
     """Counts after every revisit as the README's. From the fifteenth round this allowed one over
     per class: from the third session on the front monitor's foot was a third "mouse" (its top
     reaches into the screen's box, which grew down over the sessions); measured as counted since,
     and the foot centred under its screen is its part by ``stand_centred`` (twenty-ninth round)."""
-    m = tmp_path / "map.h5"
-    first, ids1 = session("forward", m)
+    m = copy_of(first_sessions("forward"), tmp_path)
+    first, ids1 = census(m)
     assert within_truth(first) == []
     for reader in ("reversed", "half", "reversed-half"):
         counts, ids = session(reader, m, revisit=True)
@@ -117,15 +144,16 @@ def test_forward_then_reversed_then_half_rate_sessions_keep_every_id(session, tm
         assert within_truth(counts) == [], reader
 
 
-def test_two_sessions_at_half_the_frame_rate_keep_every_id(session, tmp_path):
-    m = tmp_path / "map.h5"
-    first, ids1 = session("half", m)
+def test_two_sessions_at_half_the_frame_rate_keep_every_id(session, first_sessions, tmp_path):
+    m = copy_of(first_sessions("half"), tmp_path)
+    first, ids1 = census(m)
     second, ids2 = session("half", m, revisit=True)
     assert within_truth(first) == [] and within_truth(second) == []
     assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
 
 
-def test_the_route_seen_in_other_images_keeps_every_id_and_adds_what_the_whole_recording_maps(session, tmp_path):
+def test_the_route_seen_in_other_images_keeps_every_id_and_adds_what_the_whole_recording_maps(session, first_sessions,
+                                                                                              tmp_path):
     """The even frames, then the odd ones as a revisit: the same route, but every image is another
     one, so the detector's word differs (a replay of the same frames cannot show that). Every id of
     the first session stays, and each object the revisit adds is one that the map of all the
@@ -133,10 +161,9 @@ def test_the_route_seen_in_other_images_keeps_every_id_and_adds_what_the_whole_r
     mistake (measured: 14 -> 15 objects, a chair the even frames missed; 13 -> 14 before the
     thirty-eighth round, when the two book piles at the desk's end made one box; 11 -> 13 before
     the thirtieth round, a mouse and that chair)."""
-    m, full = tmp_path / "map.h5", tmp_path / "full.h5"
-    first, ids1 = session("half", m)
+    m, full = copy_of(first_sessions("half"), tmp_path), first_sessions("forward")
+    first, ids1 = census(m)
     second, ids2 = session("odd", m, revisit=True)
-    session("forward", full)
     assert within_truth(first) == [] and within_truth(second) == []
     assert ids1 <= ids2, f"lost {sorted(ids1 - ids2)}"
     added = sorted(ids2 - ids1)
@@ -195,7 +222,7 @@ def test_box_gaps_by_hand():
         assert box_gaps(np.array(point), c, yaw, size)[0] == pytest.approx(gap)
 
 
-def test_one_session_maps_every_hand_measured_place_and_the_monitors_as_two(session, tmp_path):
+def test_one_session_maps_every_hand_measured_place_and_the_monitors_as_two(first_sessions):
     """One session: a box of its class within 0.05 m of each place measured by hand
     (tests/real_truth.py: three monitors, the white mouse, the red trackball, the mug, the keyboard,
     the chair) and no "mouse" on either monitor's foot; the two front monitors are two boxes, each
@@ -209,9 +236,7 @@ def test_one_session_maps_every_hand_measured_place_and_the_monitors_as_two(sess
     (twenty-ninth round). No box holds two things of one class (``APART``): before
     ``association.seen_apart_gap`` one "mouse" box lay over the red trackball and the game
     controller 5 cm beside it (thirty-third round)."""
-    m = tmp_path / "map.h5"
-    session("forward", m)
-    smap = load_map(m)
+    smap = load_map(first_sessions("forward"))
     wrong = [f"{lm.name}: {where}" for lm, ok, where in check(smap) if not ok]
     assert wrong == []
     assert merged_pairs(smap, APART["tum-fr1-rpy"]) == []
@@ -252,14 +277,12 @@ def test_a_third_of_the_frame_rate_maps_what_is_in_view(session, tmp_path):
     assert within_truth(counts) == []
 
 
-def test_no_book_is_as_deep_as_a_desk(session, tmp_path):
+def test_no_book_is_as_deep_as_a_desk(first_sessions):
     """One session: every "book" box's shorter horizontal side is under 0.6 m (no book is that
     deep; the paper stacks the detector calls book are 0.23-0.31 m). Before ``modeling.max_short_side``
     two detections in blurred frames 11 and 13 gave a 0.84 x 0.96 m "book" over the far desk
     (docs/decisions.md, twenty-ninth round)."""
-    m = tmp_path / "map.h5"
-    session("forward", m)
-    smap = load_map(m)
+    smap = load_map(first_sessions("forward"))
     rows = np.flatnonzero(smap.objects.status == ACTIVE)
     books = rows[top_class(smap.objects.scores[rows]) == smap.classes.index("book")]
     assert books.size >= 1
@@ -313,23 +336,27 @@ def test_a_jittery_localiser_leaves_no_second_box_of_a_small_thing(tmp_path, ses
 
 
 @pytest.fixture(scope="module")
-def drive_5_then_6(session, tmp_path_factory):
+def drive_5_then_6(session, first_sessions, tmp_path_factory):
     """Drive 5, then the revisit with draw 6 (tests/replay.py Drifted), at the defaults: (the map
     after drive 5, the map after the revisit, ids after each). Shared by the tests below."""
-    d = tmp_path_factory.mktemp("drive-5-then-6")
-    first, m = d / "drive-5.h5", d / "map.h5"
-    _, ids1 = session("drift-5", m)
-    shutil.copyfile(m, first)
+    first = first_sessions("drift-5")
+    m = tmp_path_factory.mktemp("drive-5-then-6") / "map.h5"
+    shutil.copyfile(first, m)
+    _, ids1 = census(m)
     _, ids2 = session("drift-6", m, revisit=True)
     return first, m, ids1, ids2
 
 
-def drive(reader_overrides, tmp_path, revisit: bool = True):
+def drive(reader_overrides, tmp_path, revisit: bool = True, first: Path | None = None):
     """Drive 5 (and, with ``revisit``, the revisit with draw 6) with config overrides: (map, ids
-    after drive 5, ids at the end)."""
+    after drive 5, ids at the end). With ``first``, drive 5 is that map's copy (the overrides
+    must then be ones that leave a first session as it is, see ``first_sessions``)."""
     m = tmp_path / "map.h5"
     cfg = load_config(None, ["detector.name=cached-yolo", f"detector.options.model={MODEL}", *reader_overrides])
-    ingest([DATA], m, cfg, reader="drift-5")
+    if first is None:
+        ingest([DATA], m, cfg, reader="drift-5")
+    else:
+        shutil.copyfile(first, m)
     _, ids1 = census(m)
     if revisit:
         ingest([DATA], m, cfg, reader="drift-6", revisit=True)
@@ -346,11 +373,12 @@ def test_a_revisit_off_in_another_way_keeps_the_controllers_id(drive_5_then_6):
     assert any(e.detail.startswith("re-identified") for e in load_map(m).events if e.session == 1)
 
 
-def test_without_reidentification_the_controllers_id_is_lost(tmp_path, session):
+def test_without_reidentification_the_controllers_id_is_lost(tmp_path, first_sessions):
     """The same drives without ``reidentify_margin`` (the thirty-fifth round) lose one id, a
     "mouse" on the game controller. ``maintenance.earlier_overlap_iou`` (thirty-seventh round)
     keeps that id too, where the new box overlaps the old one, so it is off here as well."""
-    m, ids1, ids2 = drive(["maintenance.reidentify_margin=null", "maintenance.earlier_overlap_iou=null"], tmp_path)
+    m, ids1, ids2 = drive(["maintenance.reidentify_margin=null", "maintenance.earlier_overlap_iou=null"], tmp_path,
+                          first=first_sessions("drift-5"))
     lost = sorted(ids1 - ids2)
     assert len(lost) == 1
     smap = load_map(m)
@@ -383,7 +411,7 @@ def test_a_one_view_chair_does_not_take_the_monitor_behind_into_the_front_one(dr
     (["maintenance.earlier_small_overlap_iou=null"], 4),
     (["maintenance.earlier_overlap_iou=null"], 5),
 ])
-def test_drifted_copies_of_mice_join_their_first_boxes(drive_5_then_6, tmp_path, overrides, mice):
+def test_drifted_copies_of_mice_join_their_first_boxes(drive_5_then_6, first_sessions, tmp_path, overrides, mice):
     """The revisit sees the trackball 9 cm from its first box and makes a new "mouse" there,
     overlapping it (XY IoU 0.18), and the white mouse 0.1 m from its first box (IoU 0.095), too
     far to join it in any frame (together longer than a mouse, ``max_union_length``). With
@@ -394,7 +422,7 @@ def test_drifted_copies_of_mice_join_their_first_boxes(drive_5_then_6, tmp_path,
     if not overrides:
         _, m, ids1, ids2 = drive_5_then_6
     else:
-        m, ids1, ids2 = drive(overrides, tmp_path)
+        m, ids1, ids2 = drive(overrides, tmp_path, first=first_sessions("drift-5"))
     assert ids1 <= ids2
     counts = census(m)[0]
     joined = [e for e in load_map(m).events if e.session == 1 and e.detail.startswith("joined")]
@@ -403,14 +431,14 @@ def test_drifted_copies_of_mice_join_their_first_boxes(drive_5_then_6, tmp_path,
 
 
 @pytest.mark.parametrize("small_iou, mice", [(None, 3), ("null", 4)])
-def test_a_partial_trackball_box_of_a_revisit_joins_the_first_one(tmp_path, session, small_iou, mice):
+def test_a_partial_trackball_box_of_a_revisit_joins_the_first_one(tmp_path, session, first_sessions, small_iou, mice):
     """Drive 3, then the revisit with draw 4: the revisit's drift puts the trackball's partial views
     0.12 m from its first box, beyond eq. 2's size cap, and makes a fourth "mouse" there whose
     footprint overlaps the first box by an XY IoU of 0.03. ``maintenance.earlier_small_overlap_iou``
     (0.02) joins it to the first box at the session's end: 3 mice, as drive 3 counted; without it
     (``earlier_overlap_iou``'s 0.1 for every pair), 4 (docs/decisions.md, thirty-ninth round)."""
     m, counts1, ids1, counts2, ids2 = drive_and_revisit("drift-3", "drift-4", cached_config("maintenance.earlier_small_overlap_iou", small_iou),
-                                                        tmp_path)
+                                                        tmp_path, first=first_sessions("drift-3"))
     assert (counts1["mouse"], counts2["mouse"]) == (3, mice)
     assert ids1 <= ids2
     assert misplaced(m) == []
