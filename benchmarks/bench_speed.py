@@ -53,11 +53,22 @@ TUM = SHARED / "data" / "tum-fr1-rpy"
 LTC = [sys.executable, "-c", "import sys; sys.argv[0] = 'ltc'; from ltc_cli.cli import main; main()"]
 
 
+def child_env() -> dict:
+    """The children's environment: this checkout first on PYTHONPATH. They run in the temporary
+    folder, not here: ``python -c`` puts its working folder before PYTHONPATH, so a ``--baseline``
+    of ``env PYTHONPATH=/old python -c ...`` started here imported this checkout, not /old (until
+    the forty-fifth round, when "baseline" and "now" measured the same code)."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return env
+
+
 def run_cpu(cmd: list[str], env: dict | None = None) -> tuple[float, float, str]:
     """(CPU s, wall s, stdout) of one child process; raises if it fails."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    done = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    done = subprocess.run(cmd, capture_output=True, text=True, env=child_env() if env is None else env,
+                          cwd=tempfile.gettempdir())
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
@@ -149,7 +160,7 @@ def detector_ms(python: list[str], model: Path, provider: str, n: int, precision
 
 def has_openvino(python: list[str]) -> bool:
     probe = "import ltc_cli, onnxruntime as o; print('OpenVINOExecutionProvider' in o.get_available_providers())"
-    done = subprocess.run([*python, "-c", probe], capture_output=True, text=True)
+    done = subprocess.run([*python, "-c", probe], capture_output=True, text=True, env=child_env(), cwd=tempfile.gettempdir())
     return done.returncode == 0 and done.stdout.strip() == "True"
 
 
