@@ -21,7 +21,7 @@ from ltc_cli import __version__, plugins
 from ltc_cli.config import load_config
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.signals import stop_on_signals
-from ltc_cli.text import plural
+from ltc_cli.text import plural, skipped_breakdown
 from ltc_cli.threads import mapping_threads
 
 
@@ -139,8 +139,9 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
                 should_stop=lambda: stop["signal"] is not None, jobs=jobs, revisit=revisit, cluster=cluster,
             )
     visit = f"visit {summary.visit}; " if summary.visit > 1 else ""
+    why = f" ({skipped_breakdown(summary.skipped_reasons)})" if summary.skipped_reasons else ""
     line = (
-        f"{map_path}: {_plural(summary.frames_done, 'frame')} ingested, {summary.frames_skipped} skipped, "
+        f"{map_path}: {_plural(summary.frames_done, 'frame')} ingested, {summary.frames_skipped} skipped{why}, "
         f"{summary.frames_already} already in the map; objects {summary.created} created, "
         f"{summary.merged} merged, {summary.removed} removed; {summary.objects} in the map; "
         f"{visit}{summary.seconds:.1f} s"

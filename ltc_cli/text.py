@@ -6,3 +6,39 @@ def plural(n: int, word: str) -> str:
     if n == 1:
         return f"{n} {word}"
     return f"{n} {word}{'es' if word.endswith(('s', 'x', 'sh', 'ch')) else 's'}"
+
+
+LISTED_PER_REASON = 10
+
+
+def skip_reason(message: str) -> str:
+    """What a skipped frame's error says, without the details that differ from file to file:
+    "cannot read image (OSError: ... 'rgb/1.jpg')" -> "cannot read image"."""
+    return message.split(" (", 1)[0]
+
+
+class SkippedFrames:
+    """Skipped frames counted by reason, and warned about: the first ``listed`` of each reason one
+    line each, then one line saying that the rest are only counted. A recording copied in part (its
+    index lists 232 frames, 40 images arrived) otherwise buries the warnings that matter under 192
+    lines of "image file is missing"."""
+
+    def __init__(self, warn, listed: int = LISTED_PER_REASON):
+        self.warn = warn
+        self.listed = listed
+        self.counts: dict[str, int] = {}
+
+    def skip(self, key: str, exc) -> None:
+        """Count frame ``key``, skipped for ``exc`` (an LtcError), and warn as the class says."""
+        reason = skip_reason(exc.message)
+        n = self.counts[reason] = self.counts.get(reason, 0) + 1
+        if n <= self.listed:  # the (listed + 1)th says that it is the last line of its reason
+            self.warn(f"skipped frame {key}: {exc}")
+        elif n == self.listed + 1:
+            self.warn(f"skipped frame {key}: {exc}; further frames skipped for \"{reason}\" are counted in "
+                      "the summary, not listed")
+
+
+def skipped_breakdown(counts: dict[str, int]) -> str:
+    """ "192 image file is missing, 3 cannot read image" (most frequent first); "" for none."""
+    return ", ".join(f"{n} {reason}" for reason, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))

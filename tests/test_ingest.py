@@ -291,11 +291,34 @@ def test_a_run_whose_every_frame_is_bad_fails_with_one_line(tmp_path):
     m = tmp_path / "map.h5"
     r = CliRunner().invoke(cli, ["ingest", str(rec), "--map", str(m)])
     assert r.exit_code == 1
-    assert "0 frames ingested, 5 skipped, 0 already in the map" in r.stdout
+    assert "0 frames ingested, 5 skipped (5 depth image is 640x480, the camera is 320x240), 0 already in the map" \
+        in r.stdout
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 6 and all(ln.startswith("warning: skipped frame") for ln in lines[:5])
     assert lines[5] == f"Error: {rec}: no frame could be mapped, all 5 were bad (see the warnings); {m} is unchanged"
     assert not m.exists()
+
+
+def test_many_frames_skipped_for_one_reason_are_listed_ten_times_then_counted(tmp_path):
+    """A recording copied in part: 12 of 14 frames lack their depth image, one colour image is
+    unreadable. The first 10 missing ones get a line each, the 11th says that the rest are only
+    counted, the 12th gets none; the unreadable one (another reason) still gets its line, and the
+    summary counts both reasons."""
+    rec = write_recording(tmp_path / "rec", cam_ys=tuple(np.linspace(-1.5, 1.5, 14)))
+    for i in range(12):
+        os.remove(rec / "depth" / f"{i:06d}.png")
+    (rec / "rgb" / "000012.png").write_bytes(b"\x89PNG but not really")
+    m = tmp_path / "map.h5"
+    r = CliRunner().invoke(cli, ["ingest", str(rec), "--map", str(m)])
+    assert r.exit_code == 0, r.output
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 12, lines
+    for i in range(10):
+        assert lines[i] == f"warning: skipped frame {i:06d}: {rec / 'depth' / f'{i:06d}.png'}: image file is missing"
+    assert lines[10] == (f"warning: skipped frame 000010: {rec / 'depth' / '000010.png'}: image file is missing; "
+                         'further frames skipped for "image file is missing" are counted in the summary, not listed')
+    assert lines[11].startswith(f"warning: skipped frame 000012: {rec / 'rgb' / '000012.png'}: cannot read image (")
+    assert "1 frame ingested, 13 skipped (12 image file is missing, 1 cannot read image), 0 already" in r.stdout
 
 
 @pytest.mark.parametrize("text", ["format: ltc-recording/1\ncamera: [1, 2\n", "format: ltc-recording/1\ncamera: {width: 640}\ndepth: {scale: 1000}\n", "just a string\n"])

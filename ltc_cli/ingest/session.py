@@ -42,6 +42,7 @@ from ltc_cli.pipeline.classes import ClassMapper
 from ltc_cli.pipeline.frame_modeling import FrameModel, in_map_classes, most_confident
 from ltc_cli.pipeline.mapper import Mapper
 from ltc_cli.recordings.open import open_recording
+from ltc_cli.text import SkippedFrames
 from ltc_cli.tools.calibration_file import calibration_settings, load_calibration
 from ltc_cli.types import Recording
 
@@ -64,6 +65,7 @@ class IngestSummary:
     session: int = 0
     visit: int = 1
     stage_seconds: dict = field(default_factory=dict)
+    skipped_reasons: dict = field(default_factory=dict)  # frames skipped, by what their error said
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -280,6 +282,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
     resumed = len(smap.sessions) == n_sessions
     mapper = Mapper(smap, plan.settings, plan.metric, plan.policy, session=session)
     summary = IngestSummary(session=session, visit=row["visit"])
+    skips = SkippedFrames(opts.warn)
     stage = {k: 0.0 for k in STAGES}
     since_commit = 0
     completes = False
@@ -314,7 +317,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 except FrameError as exc:
                     if opts.strict:
                         raise
-                    opts.warn(f"skipped frame {ref.key}: {exc}")
+                    skips.skip(ref.key, exc)
                     summary.frames_skipped += 1
                     row["frames_skipped"] += 1
                     opts.tick()
@@ -377,6 +380,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
         save_map(smap, map_path)
     summary.objects = len(smap.active_rows())
     summary.stage_seconds = stage
+    summary.skipped_reasons = dict(skips.counts)
     if error is not None:
         raise error
     return summary

@@ -85,6 +85,7 @@ from PIL import Image
 
 from ltc_cli import plugins
 from ltc_cli.errors import FrameError, RecordingError
+from ltc_cli.text import SkippedFrames
 from ltc_cli.tools.calibration_file import (
     METHOD, Calibration, CalibrationError, ClassStats, InstanceOutcome, v_other_from_rate, write_calibration,
 )
@@ -226,6 +227,7 @@ def calibrate(
         r = cal.confusion.setdefault(row, {})
         r[col] = r.get(col, 0) + 1
 
+    skips = SkippedFrames(warn)
     for ref in rec.frames:
         ann_path = ann_dir / f"{ref.key}.png"
         if not ann_path.is_file():
@@ -238,7 +240,7 @@ def calibrate(
             ids = read_annotation(ann_path, frame.depth_m.shape)
             dets = det.detect(frame)
         except FrameError as exc:
-            warn(f"skipped frame {ref.key}: {exc}")
+            skips.skip(ref.key, exc)
             cal.frames_skipped += 1
             if progress:
                 progress(1)
