@@ -26,6 +26,7 @@ from ltc_cli.errors import LtcError, FrameError
 from ltc_cli.fileio import atomic_target
 from ltc_cli.map.model import REMOVED, SemanticMap
 from ltc_cli.map.query import classify, removal_events
+from ltc_cli.text import SkippedFrames
 
 INSTALL_HINT = "rerun-sdk is not installed: pip install 'ltc[viz]' (or pip install rerun-sdk)"
 APPLICATION_ID = "ltc"
@@ -83,19 +84,20 @@ def log_map(rec, smap: SemanticMap) -> int:
 def log_recording(rec, recording, T_map_world: np.ndarray, every: int = 1, images: bool = True,
                   warn=None) -> int:
     """Log a recording's camera path and, every ``every`` frames, its camera and images on the
-    ``frame`` timeline. Frames that cannot be read are skipped (``warn`` hears of each). Returns
+    ``frame`` timeline. Frames that cannot be read are skipped (``warn`` hears of ten of each reason). Returns
     how many frames were logged."""
     rr = require_rerun()
     intr = recording.intrinsics
     rec.log("world/camera", rr.Pinhole(image_from_camera=intr.K, resolution=[intr.width, intr.height],
                                        camera_xyz=rr.ViewCoordinates.RDF, image_plane_distance=0.3), static=True)
     path, done = [], 0
+    skips = SkippedFrames(warn) if warn else None
     for ref in recording.frames[::max(1, int(every))]:
         try:
             frame = ref.load()
         except FrameError as exc:
-            if warn:
-                warn(str(exc))
+            if skips:
+                skips.skip(ref.key, exc)
             continue
         T = T_map_world @ frame.T_world_camera
         path.append(T[:3, 3])
