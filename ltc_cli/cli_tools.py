@@ -14,7 +14,7 @@ import click
 
 from ltc_cli.cli import READER_OPTION_HELP, cli, progress_bar, reader_options, warn_line
 from ltc_cli.config import load_config
-from ltc_cli.text import plural
+from ltc_cli.text import plural, skipped_breakdown
 from ltc_cli.threads import mapping_threads
 
 
@@ -144,8 +144,9 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
                        f"{_fmt(s['recall']):>7} {_fmt(s['precision']):>9} {_fmt(s['v_other']):>7}")
     for w in cal.warnings:
         click.echo(f"warning: {w}", err=True)
+    skipped = f" ({cal.frames_skipped} skipped: {skipped_breakdown(cal.skipped_reasons)})" if cal.frames_skipped else ""
     click.echo(
-        f"{output}: {plural(cal.frames, 'frame')}, {plural(doc['instances'], 'instance')}, "
+        f"{output}: {plural(cal.frames, 'frame')}{skipped}, {plural(doc['instances'], 'instance')}, "
         f"recall {_fmt(doc['recall'], '.2f')} (any class {_fmt(doc['detection_rate'], '.2f')}), "
         f"precision {_fmt(doc['precision'], '.2f')}, v_other {doc['v_other']:.2f}"
     )

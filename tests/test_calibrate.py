@@ -253,6 +253,28 @@ def test_cli_errors_are_one_line(house, tmp_path):
     assert not (tmp_path / "c.yaml").exists()
 
 
+def test_many_frames_skipped_for_one_reason_are_listed_ten_times(house, tmp_path):
+    """12 of lap 1's annotated frames lack their depth image: calibrate warns for the first 10, says
+    at the 11th that the rest are only counted, skips all 12 and measures the other 18."""
+    out, _ = house
+    part = tmp_path / "part"
+    shutil.copytree(out / "lap1", part)
+    gone = sorted((part / "depth").glob("*.png"))[:12]
+    for p in gone:
+        p.unlink()
+    r = run("calibrate", part, "-o", tmp_path / "c.yaml")
+    assert r.exit_code == 0, r.output
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("warning: skipped")]
+    assert len(lines) == 11, lines
+    for p, line in zip(gone[:10], lines[:10]):
+        assert line == f"warning: skipped frame {p.stem}: {p}: image file is missing"
+    assert lines[10] == (f"warning: skipped frame {gone[10].stem}: {gone[10]}: image file is missing; "
+                         'further frames skipped for "image file is missing" are counted in the summary, not listed')
+    assert r.stdout.startswith(f"{tmp_path / 'c.yaml'}: 18 frames (12 skipped: 12 image file is missing), ")
+    doc = yaml.safe_load((tmp_path / "c.yaml").read_text())
+    assert doc["frames_skipped"] == 12 and doc["frames"] == 18
+
+
 def removal_record(map_path, gt_removed_centers):
     """For each removed ground-truth object (XY centre), the map object at it (active after lap 1)
     and, in session 1, the frame and the number of non-detections at which it was removed (None:

@@ -302,6 +302,7 @@ def calibrate(
             f"no ground-truth instance with at least {min_pixels} visible pixels of a class the detector "
             f"knows, in {cal.frames} frames: nothing to measure", root)
     _stability_warnings(cal)
+    cal.skipped_reasons = dict(skips.counts)
     return cal
 
 

@@ -99,6 +99,7 @@ class Calibration:
     iou_threshold: float
     frames: int = 0  # frames evaluated
     frames_skipped: int = 0  # annotated frames that could not be read
+    skipped_reasons: dict = field(default_factory=dict)  # of those, how many for what (not written)
     frames_unannotated: int = 0  # frames without annotations/<id>.png (not run)
     detections: int = 0
     ignored_instances: int = 0  # instances too small or of a class the detector does not know
