@@ -84,8 +84,8 @@ def log_map(rec, smap: SemanticMap) -> int:
 def log_recording(rec, recording, T_map_world: np.ndarray, every: int = 1, images: bool = True,
                   warn=None) -> int:
     """Log a recording's camera path and, every ``every`` frames, its camera and images on the
-    ``frame`` timeline. Frames that cannot be read are skipped (``warn`` hears of ten of each reason). Returns
-    how many frames were logged."""
+    ``frame`` timeline. Frames that cannot be read are skipped (``warn`` hears of ten of each kind
+    of reason, :class:`~ltc_cli.text.SkippedFrames`). Returns how many frames were logged."""
     rr = require_rerun()
     intr = recording.intrinsics
     rec.log("world/camera", rr.Pinhole(image_from_camera=intr.K, resolution=[intr.width, intr.height],
