@@ -17,9 +17,11 @@ _NUMBER = re.compile(r"\d+(?:\.\d+)?")
 
 
 def skip_reason(message: str) -> str:
-    """What a skipped frame's error says, without the details that differ from file to file:
-    "cannot read image (OSError: ... 'rgb/1.jpg')" -> "cannot read image"."""
-    return message.split(" (", 1)[0]
+    """What a skipped frame's error says, without the underlying error's text that closes it
+    ("cannot read image (OSError: ... 'rgb/1.jpg')" -> "cannot read image"). A closing
+    parenthesis that holds no such "Name: text" stays: "... got shape (480, 640, 3)"."""
+    head, sep, rest = message.partition(" (")
+    return head if sep and rest.endswith(")") and ":" in rest else message
 
 
 def reason_key(reason: str) -> str:

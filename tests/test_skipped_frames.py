@@ -12,6 +12,12 @@ def test_reasons_that_differ_only_in_names_and_numbers_are_one_kind():
         == "topic /cam/depth: no message stamped N s"
     assert reason_key("frame '000012' has no pose line") == "frame '…' has no pose line"
     assert reason_key("image file is missing") == "image file is missing"
+    # A parenthesis that is part of the reason stays, numbers aside.
+    assert skip_reason("depth image must have one channel, got shape (480, 640, 3)") \
+        == "depth image must have one channel, got shape (480, 640, 3)"
+    assert reason_key(skip_reason("depth image must have one channel, got shape (480, 640, 3)")) \
+        == "depth image must have one channel, got shape (N, N, N)"
+    assert skip_reason("not valid JSON (Expecting value: line 1 column 1 (char 0))") == "not valid JSON"
 
 
 def test_a_kind_is_listed_ten_times_then_counted_and_named_by_its_kind_when_reasons_differ():
