@@ -38,6 +38,8 @@ def register_metrics(register: RegisterMetric) -> None:
     <ltc_cli.protocols.Metric.distance>` gives the distance (M,) in metres between one detection box
     and M candidate map boxes, each a :class:`ltc_cli.geometry.boxes.Boxes` (corners, visible flags,
     centres, sizes). Smaller is closer; the association thresholds of the config apply to it.
+    Optional attributes let ltc skip pairs that cannot match (``center_bound``) and measure a
+    frame's pairs of map objects in one call (``paired``); see the protocol.
     """
 
 

@@ -61,6 +61,10 @@ class Metric(Protocol):
     Optional ``center_bound = True``: the distance is never less than the boxes' centre distance
     less both half diagonals (true of eq. 2 and of the centre distance); the mapper then compares a
     detection only with the map objects that bound lets match (the same decisions, less time).
+
+    Optional ``paired = True``: ``distance(a, b)`` also takes M boxes in ``a`` and returns the
+    distance of each pair (a[k], b[k]); the de-duplication after a frame then measures all its
+    pairs in one call instead of one call per map object.
     """
 
     def distance(self, det: Boxes, cands: Boxes) -> np.ndarray: ...

@@ -13,6 +13,7 @@ class VertexMetric:
     # The mean distance of corners is at least the centres' distance less both half diagonals:
     # the mapper compares a detection only with the map objects that bound lets match.
     center_bound = True
+    paired = True  # ``distance`` also takes M boxes paired with M candidates
 
     def __init__(self, options: dict):
         self.min_visible_pairs = int(options.get("min_visible_pairs", 3))
@@ -26,6 +27,7 @@ class CentroidMetric:
     partial view of a long table lands far from the table's centre and makes a duplicate."""
 
     center_bound = True  # the distance is the centres' distance itself
+    paired = True
 
     def __init__(self, options: dict):
         pass

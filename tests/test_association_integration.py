@@ -163,6 +163,67 @@ def test_duplicate_pairs_with_reach_are_those_of_every_pair():
     assert found > 20  # the scenes do have duplicates
 
 
+def test_paired_distances_are_those_of_one_box_against_many():
+    # A metric with ``paired`` measures K pairs (a[k], b[k]) in one call: the numbers of one call
+    # per detection box against its candidates (numpy may sum the 8 vertices' distances in another
+    # order for another array shape: equal to the last bits), and the same shifts.
+    rng = np.random.default_rng(13)
+    b = random_boxes(rng, 40)
+    i, j = np.triu_indices(len(b), k=1)
+    for min_pairs in (1, 3, 5):
+        d, shift = vertex_distance(b.take(i), b.take(j), min_visible_pairs=min_pairs)
+        for a in range(len(b) - 1):
+            one_d, one_shift = vertex_distance(b.take(slice(a, a + 1)), b.take(j[i == a]), min_visible_pairs=min_pairs)
+            np.testing.assert_allclose(d[i == a], one_d, rtol=1e-13, atol=0)
+            assert np.array_equal(shift[i == a], one_shift)
+    assert np.array_equal(centroid_distance(b.take(i), b.take(j)), np.linalg.norm(b.center[i] - b.center[j], axis=1))
+
+
+def test_vertex_distance_is_the_mean_corner_distance_of_the_best_shift():
+    # Eq. 2 written out pair by pair, corner by corner, against the vectorised rings.
+    rng = np.random.default_rng(16)
+    b = random_boxes(rng, 25)
+    for k in range(len(b) - 1):
+        got, shift = vertex_distance(b.take(slice(k, k + 1)), b, min_visible_pairs=3)
+        for m in range(len(b)):
+            means = []
+            for s in SHIFTS:
+                pairs = [(b.corners[k][v], b.corners[m][s[v]]) for v in range(8)
+                         if b.visible[k][v] and b.visible[m][s[v]]]
+                if len(pairs) < 3:
+                    pairs = [(b.corners[k][v], b.corners[m][s[v]]) for v in range(8)]
+                means.append(np.mean([np.sqrt(((p - q) ** 2).sum()) for p, q in pairs]))
+            assert got[m] == pytest.approx(min(means), rel=1e-12) and means[shift[m]] == pytest.approx(min(means))
+
+
+def test_duplicate_pairs_with_a_paired_metric_are_those_of_one_call_per_box():
+    from ltc_cli.pipeline.deduplication import duplicate_pairs
+
+    rng = np.random.default_rng(14)
+    metric = lambda det, cands: vertex_distance(det, cands)[0]  # noqa: E731
+    calls = []
+
+    def per_box(det, cands):
+        assert len(det) == 1  # a metric without ``paired`` is called as in stage 2
+        calls.append(len(cands))
+        return metric(det, cands)
+
+    found = 0
+    for _ in range(30):
+        m = int(rng.integers(2, 60))
+        b = random_boxes(rng, m, spread=2.0)
+        top, defined = rng.integers(0, 3, m), rng.random(m) < 0.5
+        args = (b, top, metric, 0.4, 0.25, 0.5, 0.7, 0.1)
+        kw = dict(reach=0.05, min_overlap=0.2, defined=defined, established=rng.random(m) < 0.3,
+                  labels_apart=True, scores=rng.dirichlet(np.ones(4), m), min_evidence=0.1)
+        want = duplicate_pairs(*args, **kw)
+        for got in (duplicate_pairs(*args, **kw, paired=True), duplicate_pairs(b, top, per_box, *args[3:], **kw)):
+            assert [p[1:] for p in got] == [p[1:] for p in want]
+            np.testing.assert_allclose([p[0] for p in got], [p[0] for p in want], rtol=1e-13, atol=0)
+        found += len(want)
+    assert found > 50 and len(calls) > 300  # scenes with duplicates, measured box by box
+
+
 def test_mapper_decides_the_same_with_and_without_the_candidate_bound():
     # Frames of 30 crowded boxes, detections jittered: the maps made with the vertex metric (which
     # declares center_bound, so candidates are pre-selected) and with the same metric not declaring
@@ -173,7 +234,7 @@ def test_mapper_decides_the_same_with_and_without_the_candidate_bound():
     from ltc_cli.pipeline.mapper import Mapper
     from tests.scene import INTR, T_world_camera, render
 
-    class Unbounded:
+    class Unbounded:  # nor ``paired``: the de-duplication measures its pairs one box at a time
         center_bound = False
 
         def __init__(self, inner):
@@ -207,3 +268,23 @@ def test_mapper_decides_the_same_with_and_without_the_candidate_bound():
     for name, col in a.objects.cols.items():
         assert np.array_equal(col[: a.objects.n], b.objects.cols[name][: b.objects.n]), name
     assert [(e.kind, e.object_id, e.other_id) for e in a.events] == [(e.kind, e.object_id, e.other_id) for e in b.events]
+
+
+def test_pairwise_containment_is_the_share_of_volume_inside_by_shapely():
+    # A second implementation: shapely's footprint intersection times the z overlap, over the
+    # first box's volume; pairs apart in height or in their footprints' extents give 0.
+    from shapely.geometry import Polygon
+
+    from ltc_cli.pipeline.association import pairwise_containment
+
+    rng = np.random.default_rng(15)
+    for _ in range(5):
+        b = random_boxes(rng, 30, spread=1.5)
+        got = pairwise_containment(b)
+        feet = [Polygon(c[:4, :2]) for c in b.corners]
+        z0, z1 = b.center[:, 2] - b.size[:, 2] / 2, b.center[:, 2] + b.size[:, 2] / 2
+        want = np.array([[feet[i].intersection(feet[j]).area * max(0.0, min(z1[i], z1[j]) - max(z0[i], z0[j]))
+                          / np.prod(b.size[i]) for j in range(len(b))] for i in range(len(b))])
+        np.fill_diagonal(want, 1.0)
+        np.testing.assert_allclose(got, want, atol=1e-9)
+        assert 0 < (want[~np.eye(len(b), dtype=bool)] > 0).mean() < 0.9  # some pairs overlap, some do not

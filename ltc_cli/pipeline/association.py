@@ -10,9 +10,12 @@ import numpy as np
 from ltc_cli.geometry.boxes import SHIFTS, Boxes
 from ltc_cli.geometry.polygons import convex_intersection_area
 
+RING_SHIFTS = SHIFTS[:, :4]  # the shifts within a ring
+
 
 def vertex_distance(det: Boxes, cands: Boxes, min_visible_pairs: int = 3):
-    """Eq. 2 between one detection box and M candidate boxes: (distance (M,), shift (M,)).
+    """Eq. 2 between one detection box and M candidate boxes: (distance (M,), shift (M,)); or
+    between M pairs, ``det[k]`` and ``cands[k]``, when ``det`` holds M boxes.
 
     The distance is the mean Euclidean distance of corresponding vertices. Correspondence is the
     global nearest neighbour particularised to Z-oriented boxes: the 4 cyclic shifts of the top ring
@@ -20,18 +23,19 @@ def vertex_distance(det: Boxes, cands: Boxes, min_visible_pairs: int = 3):
     ``min_visible_pairs`` corresponding pairs are visible in both boxes, only those pairs count, so
     a partial view is compared with the part of the map box that it really saw.
 
-    ``det`` holds one box (index 0). ``shift[m] = k`` means detection vertex i corresponds to
-    vertex ``SHIFTS[k][i]`` of candidate m.
+    ``shift[m] = k`` means detection vertex i corresponds to vertex ``SHIFTS[k][i]`` of candidate m.
     """
     m = len(cands)
     if m == 0:
         return np.zeros(0), np.zeros(0, dtype=int)
-    d_corners = det.corners[0]  # (8, 3)
-    d_vis = det.visible[0]  # (8,)
-    c_corners = cands.corners[:, SHIFTS]  # (M, 4, 8, 3): shifted candidate corners
-    c_vis = cands.visible[:, SHIFTS]  # (M, 4, 8)
-    dist = np.linalg.norm(c_corners - d_corners, axis=-1)  # (M, 4, 8)
-    both = c_vis & d_vis
+    d, c = det.corners, cands.corners  # (1 or M, 8, 3), (M, 8, 3)
+    # A ring's corners share one height and the top ring stands over the bottom one: a pair's squared
+    # distance is its rings' XY part plus one height difference squared (a norm's order: the same bits).
+    dxy = c[:, RING_SHIFTS, :2] - d[:, None, :4, :2]  # (M, 4 shifts, 4, 2)
+    xy2 = dxy[..., 0] ** 2 + dxy[..., 1] ** 2
+    z2 = (c[:, ::4, 2] - d[:, ::4, 2]) ** 2  # (M, 2): bottom ring, top ring
+    dist = np.sqrt(xy2[:, :, None] + z2[:, None, :, None]).reshape(m, 4, 8)  # (M, 4, 8)
+    both = cands.visible[:, SHIFTS] & det.visible[:, None]  # (M, 4, 8)
     n_both = both.sum(axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
         restricted = (dist * both).sum(axis=-1) / n_both
@@ -41,8 +45,9 @@ def vertex_distance(det: Boxes, cands: Boxes, min_visible_pairs: int = 3):
 
 
 def centroid_distance(det: Boxes, cands: Boxes):
-    """Baseline metric: distance between box centres (M,), ignoring size, orientation and views."""
-    return np.linalg.norm(cands.center - det.center[0], axis=-1)
+    """Baseline metric: distance between box centres (M,), ignoring size, orientation and views
+    (``det`` one box, or M boxes paired with ``cands``' M)."""
+    return np.linalg.norm(cands.center - det.center, axis=-1)
 
 
 def within_reach(center: np.ndarray, radius, centers: np.ndarray, radii: np.ndarray, reach: float) -> np.ndarray:
@@ -75,7 +80,7 @@ def half_diagonals(size: np.ndarray) -> np.ndarray:
     return np.linalg.norm(size, axis=1) / 2
 
 
-def thresholds_for(det_class: int, cand_classes: np.ndarray, same: float, other: float,
+def thresholds_for(det_class: int | np.ndarray, cand_classes: np.ndarray, same: float, other: float,
                    other_cap: np.ndarray | None = None, same_cap: np.ndarray | None = None) -> np.ndarray:
     """The match threshold (M,) per candidate: looser when the top classes agree. ``other_cap``,
     ``same_cap`` (M,): tighter bounds on the other-class and same-class thresholds per candidate
@@ -215,7 +220,8 @@ def pairwise_containment(boxes: Boxes, near: np.ndarray | None = None) -> np.nda
     """(M, M) matrix whose [i, j] is the fraction of box i's volume inside box j (diagonal 1).
 
     ``near`` (M, M) bool: the pairs that may overlap (:func:`within_reach`); the others are 0
-    without clipping their footprints."""
+    without clipping their footprints, as are those whose heights or footprints' extents do not
+    overlap."""
     m = len(boxes)
     out = np.eye(m)
     if m < 2:
@@ -224,10 +230,13 @@ def pairwise_containment(boxes: Boxes, near: np.ndarray | None = None) -> np.nda
     if near is not None:
         i, j = i[near[i, j]], j[near[i, j]]
     foot = boxes.corners[:, :4, :2]
-    area = convex_intersection_area(foot[i], foot[j])
     z0 = boxes.center[:, 2] - boxes.size[:, 2] / 2
     z1 = boxes.center[:, 2] + boxes.size[:, 2] / 2
-    inter = area * np.clip(np.minimum(z1[i], z1[j]) - np.maximum(z0[i], z0[j]), 0, None)
+    dz = np.clip(np.minimum(z1[i], z1[j]) - np.maximum(z0[i], z0[j]), 0, None)
+    lo, hi = foot.min(axis=1), foot.max(axis=1)
+    meet = (dz > 0) & (lo[i] <= hi[j]).all(axis=1) & (lo[j] <= hi[i]).all(axis=1)
+    i, j = i[meet], j[meet]
+    inter = convex_intersection_area(foot[i], foot[j]) * dz[meet]
     vol = np.prod(boxes.size, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         out[i, j] = np.where(vol[i] > 0, inter / vol[i], 0.0)

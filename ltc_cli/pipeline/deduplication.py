@@ -14,7 +14,7 @@ import numpy as np
 from ltc_cli.geometry.boxes import Boxes
 from ltc_cli.geometry.polygons import pairwise_ious_arrays
 from ltc_cli.pipeline.association import (
-    footprint_gaps, ground_shares, half_diagonals, pairwise_containment, similar_volume, thresholds_for, too_wide,
+    apart_grounds, footprint_gaps, half_diagonals, pairwise_containment, similar_volume, thresholds_for, too_wide,
     too_long_together, unlike_heights,
 )
 from ltc_cli.pipeline.integration import PART_INSIDE_SHARE, shares_inside
@@ -29,11 +29,12 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
                     scores: np.ndarray | None = None,
                     min_evidence: float | None = None,
                     well_seen: np.ndarray | None = None,
-                    same_scale: float | None = None) -> list[tuple[float, int, int]]:
+                    same_scale: float | None = None, paired: bool = False) -> list[tuple[float, int, int]]:
     """Pairs of map objects (M boxes in view) that match each other: [(distance, a, b)], a < b,
     sorted by distance (the closest pairs merge first).
 
-    ``distance(one, many)`` is the association metric. Two objects match when their distance is
+    ``distance(one, many)`` is the association metric (``paired``: it also takes K boxes paired
+    with K, :class:`~ltc_cli.protocols.Metric`). Two objects match when their distance is
     under the threshold of their classes, or, with containment on, when one lies mostly inside the
     other (one object seen in parts); objects of different classes only when of similar volume
     (``other_volume_ratio``, :func:`similar_volume`).
@@ -96,46 +97,69 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
             part = np.ones(m, dtype=bool) if defined is None else ~np.asarray(defined, dtype=bool)
             blocked = (wide[:, None] & part[None, :]) | (wide[None, :] & part[:, None])
             contained &= ~(blocked & (top[:, None] != top[None, :]))
-    halves = half_diagonals(boxes.size)  # the boxes' sizes, once, for the thresholds' caps
-    pairs = []
-    for a in range(m - 1):
-        rest = np.arange(a + 1, m)
-        if near is not None:
-            rest = rest[near[a, rest]]
-            if rest.size == 0:
-                continue
-        dist = distance(boxes.take(slice(a, a + 1)), boxes.take(rest))
-        larger = np.maximum(halves[a], halves[rest])  # as size_caps
-        caps = [None if scale is None else scale * larger for scale in (other_scale, same_scale)]
-        close = dist <= thresholds_for(int(top[a]), top[rest], same, other, *caps)
-        if min_overlap is not None and close.any():
-            # eq. 2 over the vertices visible in both: a partial box's visible corners can sit on
-            # its neighbour's (two monitors edge to edge); one object's pieces share their ground.
-            apart = ground_shares(boxes.take(slice(a, a + 1)), boxes.take(rest)) < min_overlap
-            if defined is not None:  # all 8 vertices of two Defined boxes are compared
-                exempt = defined[a] & defined[rest]
-                if established is not None or well_seen is not None:
-                    held = np.zeros(m, bool) if established is None else np.asarray(established, bool)
-                    if well_seen is not None:
-                        held = held | np.asarray(well_seen, bool)
-                    exempt &= ~(held[a] & held[rest])
-                if labels_apart:
-                    exempt &= top[a] == top[rest]
-                apart &= ~exempt
-            close &= ~apart
-        if mutual is not None and established is not None:
-            # Two objects of different classes that the map kept apart through a whole session:
-            # one object under two labels carries both by now, each of them; a monitor and the foot
-            # the detector calls "mouse" do not (tum-fr1-rpy's second half revisiting the first
-            # half's map: by eq. 2 the monitor's 23 detections went into the foot's box, and it was
-            # "mouse"), nor a keyboard and the mouse beside it whose masks took a strip of the keys
-            # (its vector gave keyboard 0.19, the keyboard's mouse nothing; with the int8 model the
-            # mouse went into the keyboard on a revisit).
-            close &= (top[rest] == top[a]) | ~(established[a] & established[rest]) | mutual[a, rest]
-        if need_same:
-            close |= contained[a, rest]
-        pairs.extend((float(dist[b]), a, int(rest[b])) for b in np.flatnonzero(close))
-    return sorted(pairs)
+    boxes.corners  # noqa: B018  computed once, and shared by the pairs' takes
+    i, j = np.triu_indices(m, k=1)  # every pair once, a < b
+    if near is not None:
+        i, j = i[near[i, j]], j[near[i, j]]
+    if i.size == 0:
+        return []
+    halves = half_diagonals(boxes.size)
+    larger = np.maximum(halves[i], halves[j])  # as size_caps
+    caps = [None if scale is None else scale * larger for scale in (other_scale, same_scale)]
+    thr = thresholds_for(top[i], top[j], same, other, *caps)
+    measure = np.ones(len(i), dtype=bool)
+    if reach is not None:
+        # The metric's distance is at least the centres' distance less both half diagonals
+        # (within_reach): a pair farther by that bound than its own threshold joins by containment
+        # alone, and its distance is measured only then (it orders the merges).
+        bound = np.linalg.norm(boxes.center[i] - boxes.center[j], axis=1) - halves[i] - halves[j]
+        measure = (bound <= thr + 1e-6) | (contained[i, j] if need_same else False)
+    dist = np.full(len(i), np.inf)
+    dist[measure] = pair_distances(boxes, i[measure], j[measure], distance, paired)
+    close = dist <= thr
+    if min_overlap is not None and close.any():
+        # eq. 2 over the vertices visible in both: a partial box's visible corners can sit on
+        # its neighbour's (two monitors edge to edge); one object's pieces share their ground.
+        apart = apart_grounds(boxes.take(i), boxes.take(j), close, min_overlap)
+        if defined is not None:  # all 8 vertices of two Defined boxes are compared
+            defined = np.asarray(defined, bool)
+            exempt = defined[i] & defined[j]
+            if established is not None or well_seen is not None:
+                held = np.zeros(m, bool) if established is None else np.asarray(established, bool)
+                if well_seen is not None:
+                    held = held | np.asarray(well_seen, bool)
+                exempt &= ~(held[i] & held[j])
+            if labels_apart:
+                exempt &= top[i] == top[j]
+            apart &= ~exempt
+        close &= ~apart
+    if mutual is not None and established is not None:
+        # Two objects of different classes that the map kept apart through a whole session:
+        # one object under two labels carries both by now, each of them; a monitor and the foot
+        # the detector calls "mouse" do not (tum-fr1-rpy's second half revisiting the first
+        # half's map: by eq. 2 the monitor's 23 detections went into the foot's box, and it was
+        # "mouse"), nor a keyboard and the mouse beside it whose masks took a strip of the keys
+        # (its vector gave keyboard 0.19, the keyboard's mouse nothing; with the int8 model the
+        # mouse went into the keyboard on a revisit).
+        established = np.asarray(established, bool)
+        close &= (top[j] == top[i]) | ~(established[i] & established[j]) | mutual[i, j]
+    if need_same:
+        close |= contained[i, j]
+    k = np.flatnonzero(close)
+    return sorted(zip(dist[k].tolist(), i[k].tolist(), j[k].tolist()))
+
+
+def pair_distances(boxes: Boxes, i: np.ndarray, j: np.ndarray, distance, paired: bool = False) -> np.ndarray:
+    """(K,) the metric's distance of each pair of boxes (boxes[i[k]] as the detection, boxes[j[k]]
+    as the candidate), ``i`` sorted. ``paired``: ``distance`` takes K boxes paired with K (one call);
+    otherwise one call per box of ``i`` against its candidates, as a metric is called in stage 2."""
+    if paired or len(i) == 0:
+        return np.asarray(distance(boxes.take(i), boxes.take(j)), dtype=float)
+    out = np.empty(len(i))
+    starts = np.flatnonzero(np.r_[True, i[1:] != i[:-1]])
+    for s, e in zip(starts, np.r_[starts[1:], len(i)]):
+        out[s:e] = distance(boxes.take(slice(i[s], i[s] + 1)), boxes.take(j[s:e]))
+    return out
 
 
 def greedy_merges(pairs: list[tuple[float, int, int]], ids: np.ndarray, survivor=None,
@@ -312,7 +336,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                 adjoin_share: np.ndarray | None = None,
                 max_width: np.ndarray | None = None,
                 n_det: np.ndarray | None = None,
-                max_union: np.ndarray | None = None) -> list[tuple[float, int, int]]:
+                max_union: np.ndarray | None = None, paired: bool = False) -> list[tuple[float, int, int]]:
     """The pairs of in-view map objects (M boxes, top classes (M,)) to merge after a frame, by the
     association settings ``a_cfg``: true duplicates first (:func:`duplicate_pairs`: eq. 2, or one
     inside the other by ``merge_containment``, default ``containment``), then one object under two
@@ -326,7 +350,8 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
     the class vectors, for the labelled parts and for duplicate_pairs' ``merge_other_class_evidence``.
     ``n_det`` (M,): detections so far, for ``defined_apart_detections`` (None: that rule stands down).
     ``max_union`` (C+1,): no two objects of one class merge into a footprint longer than this
-    (:func:`~ltc_cli.pipeline.association.union_diameters`; None: any)."""
+    (:func:`~ltc_cli.pipeline.association.union_diameters`; None: any). ``paired``: as for
+    duplicate_pairs."""
     overlap = a_cfg["containment"] is not None
     established = first_session < session if a_cfg["established_apart"] and first_session is not None \
         and session is not None else None
@@ -337,7 +362,7 @@ def merge_pairs(boxes: Boxes, top: np.ndarray, distance, a_cfg: dict, reach: flo
                             a_cfg["containment_other_class"], a_cfg["other_class_volume_ratio"], reach,
                             a_cfg["other_class_scale"], a_cfg["merge_min_overlap"], defined, established,
                             a_cfg["labels_apart"], max_width, scores, a_cfg["merge_other_class_evidence"],
-                            well_seen, a_cfg["same_class_scale"])
+                            well_seen, a_cfg["same_class_scale"], paired)
     two_labels = relabel_pairs(boxes, top, a_cfg["merge_other_class_iou"] if overlap else None,
                                a_cfg["other_class_volume_ratio"])
     later = partial_defined_pairs(boxes, top, defined, first_session, a_cfg["merge_partial_defined_gap"],

@@ -56,7 +56,8 @@ class InstanceMerging:
                             match_reach(self.metric, a_cfg), defined, t.first_session[rows], self.session,
                             t.scores[rows], self.cfg["integration"]["defined_part_volume"],
                             self.per_class.adjoin_share if a_cfg["merge_adjoining"] else None,
-                            self.per_class.container_width, t.n_det[rows], self.per_class.max_union)
+                            self.per_class.container_width, t.n_det[rows], self.per_class.max_union,
+                            paired=bool(getattr(self.metric, "paired", False)))
         if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
             pairs = self._not_seen_apart(rows, pairs)
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b), disjoint)
