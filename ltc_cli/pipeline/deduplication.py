@@ -153,7 +153,9 @@ def pair_distances(boxes: Boxes, i: np.ndarray, j: np.ndarray, distance, paired:
     """(K,) the metric's distance of each pair of boxes (boxes[i[k]] as the detection, boxes[j[k]]
     as the candidate), ``i`` sorted. ``paired``: ``distance`` takes K boxes paired with K (one call);
     otherwise one call per box of ``i`` against its candidates, as a metric is called in stage 2."""
-    if paired or len(i) == 0:
+    if len(i) == 0:
+        return np.zeros(0)
+    if paired:
         return np.asarray(distance(boxes.take(i), boxes.take(j)), dtype=float)
     out = np.empty(len(i))
     starts = np.flatnonzero(np.r_[True, i[1:] != i[:-1]])
