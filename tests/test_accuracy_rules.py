@@ -88,6 +88,37 @@ def test_relabel_pairs_by_hand():
     assert sorted((a, b) for _, a, b in relabel_pairs(boxes, top, 0.3, None)) == [(0, 1), (0, 4), (1, 4), (1, 5), (4, 5)]
 
 
+def test_relabel_pairs_of_crowded_boxes_against_shapely():
+    # Every pair of different classes and similar volume whose footprints' XY IoU (shapely) reaches
+    # the bound, and no other, however many pairs the cheap tests leave out before clipping.
+    from shapely.geometry import Polygon
+
+    from ltc_cli.pipeline.association import similar_volume
+
+    rng = np.random.default_rng(21)
+    found = 0
+    for _ in range(10):
+        m = 40
+        boxes = Boxes(np.c_[rng.uniform(-1.5, 1.5, (m, 2)), rng.uniform(0.2, 0.8, m)], rng.uniform(-1.6, 1.6, m),
+                      rng.uniform(0.1, 1.2, (m, 3)), np.ones((m, 8), bool))
+        top = rng.integers(0, 4, m)
+        feet = [Polygon(c[:4, :2]) for c in boxes.corners]
+        vol = np.prod(boxes.size, axis=1)
+        want = {}
+        for a in range(m):
+            for b in range(a + 1, m):
+                iou = feet[a].intersection(feet[b]).area / feet[a].union(feet[b]).area
+                if top[a] != top[b] and similar_volume(vol[a], vol[b], 0.3) and iou >= 0.3:
+                    want[(a, b)] = 1 - iou
+        got = relabel_pairs(boxes, top, 0.3, 0.3)
+        assert {(a, b) for _, a, b in got} == set(want)
+        for key, a, b in got:
+            assert key == pytest.approx(want[(a, b)], abs=1e-9)
+        assert [k for k, _, _ in got] == sorted(k for k, _, _ in got)
+        found += len(got)
+    assert found > 10
+
+
 def test_fragments_of_one_class_merge_at_the_merge_containment():
     """Two chair boxes 0.7 m apart: A 0.4 x 1.2 (y -0.6..0.6), B 0.4 x 1.0 (y 0.2..1.2), same x and z:
     0.4 of B's volume lies inside A, under containment 0.5, over merge_containment 0.3."""

@@ -134,8 +134,6 @@ def pairwise_ious_arrays(center_a, yaw_a, size_a, center_b, yaw_b, size_b):
     if M == 0 or G == 0:
         return xy, vol
 
-    area_a = size_a[:, 0] * size_a[:, 1]
-    area_b = size_b[:, 0] * size_b[:, 1]
     rad_a = 0.5 * np.hypot(size_a[:, 0], size_a[:, 1])
     rad_b = 0.5 * np.hypot(size_b[:, 0], size_b[:, 1])
     dist = np.hypot(
@@ -144,26 +142,32 @@ def pairwise_ious_arrays(center_a, yaw_a, size_a, center_b, yaw_b, size_b):
     ia, ib = np.nonzero(dist <= rad_a[:, None] + rad_b[None, :] + 1e-9)
     if len(ia) == 0:
         return xy, vol
+    xy[ia, ib], vol[ia, ib] = paired_ious(center_a[ia], yaw_a[ia], size_a[ia], center_b[ib], yaw_b[ib], size_b[ib])
+    return xy, vol
 
+
+def paired_ious(center_a, yaw_a, size_a, center_b, yaw_b, size_b):
+    """Exact XY IoU and VIoU (K,) of each pair of boxes (a[k], b[k]): center_* (K, 3), yaw_* (K,),
+    size_* (K, 3). Both in [0, 1]."""
+    area_a = size_a[:, 0] * size_a[:, 1]
+    area_b = size_b[:, 0] * size_b[:, 1]
     # Footprints relative to the centre of box a: keeps coordinates small (shoelace precision).
-    origin = center_a[ia, :2]
-    fa = box_corners(center_a[ia], yaw_a[ia], size_a[ia])[:, :4, :2] - origin[:, None, :]
-    fb = box_corners(center_b[ib], yaw_b[ib], size_b[ib])[:, :4, :2] - origin[:, None, :]
+    origin = center_a[:, :2]
+    fa = box_corners(center_a, yaw_a, size_a)[:, :4, :2] - origin[:, None, :]
+    fb = box_corners(center_b, yaw_b, size_b)[:, :4, :2] - origin[:, None, :]
     inter = convex_intersection_area(fa, fb)
     # Exact limits: the intersection never exceeds the smaller footprint.
-    inter = np.minimum(inter, np.minimum(area_a[ia], area_b[ib]))
+    inter = np.minimum(inter, np.minimum(area_a, area_b))
 
-    union = area_a[ia] + area_b[ib] - inter
+    union = area_a + area_b - inter
     with np.errstate(divide="ignore", invalid="ignore"):
         iou = np.where(union > 0, inter / union, 0.0)
-    xy[ia, ib] = np.clip(iou, 0.0, 1.0)
 
-    za0, za1 = center_a[ia, 2] - size_a[ia, 2] / 2, center_a[ia, 2] + size_a[ia, 2] / 2
-    zb0, zb1 = center_b[ib, 2] - size_b[ib, 2] / 2, center_b[ib, 2] + size_b[ib, 2] / 2
+    za0, za1 = center_a[:, 2] - size_a[:, 2] / 2, center_a[:, 2] + size_a[:, 2] / 2
+    zb0, zb1 = center_b[:, 2] - size_b[:, 2] / 2, center_b[:, 2] + size_b[:, 2] / 2
     dz = np.clip(np.minimum(za1, zb1) - np.maximum(za0, zb0), 0.0, None)
     inter_v = inter * dz
-    union_v = area_a[ia] * size_a[ia, 2] + area_b[ib] * size_b[ib, 2] - inter_v
+    union_v = area_a * size_a[:, 2] + area_b * size_b[:, 2] - inter_v
     with np.errstate(divide="ignore", invalid="ignore"):
         viou = np.where(union_v > 0, inter_v / union_v, 0.0)
-    vol[ia, ib] = np.clip(viou, 0.0, 1.0)
-    return xy, vol
+    return np.clip(iou, 0.0, 1.0), np.clip(viou, 0.0, 1.0)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.geometry.polygons import pairwise_ious_arrays
+from ltc_cli.geometry.polygons import paired_ious
 from ltc_cli.pipeline.association import (
     apart_grounds, footprint_gaps, half_diagonals, pairwise_containment, similar_volume, thresholds_for, too_wide,
     too_long_together, unlike_heights,
@@ -216,12 +216,16 @@ def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_vo
     m = len(boxes)
     if min_iou is None or m < 2:
         return []
-    iou, _ = pairwise_ious_arrays(boxes.center, boxes.yaw, boxes.size, boxes.center, boxes.yaw, boxes.size)
+    # Footprints are clipped only for the pairs the other tests leave, and whose bounding circles meet.
+    i, j = np.triu_indices(m, k=1)
     vol = np.prod(boxes.size, axis=1)
-    ok = (iou >= min_iou) & (top[:, None] != top[None, :]) & similar_volume(vol[:, None], vol[None, :],
-                                                                         other_volume_ratio)
-    a, b = np.nonzero(np.triu(ok, 1))
-    return sorted((1.0 - float(iou[i, j]), int(i), int(j)) for i, j in zip(a, b))
+    radius = 0.5 * np.hypot(boxes.size[:, 0], boxes.size[:, 1])
+    gap = np.hypot(*(boxes.center[i, :2] - boxes.center[j, :2]).T)
+    keep = (top[i] != top[j]) & similar_volume(vol[i], vol[j], other_volume_ratio) & (gap <= radius[i] + radius[j] + 1e-9)
+    i, j = i[keep], j[keep]
+    iou = paired_ious(boxes.center[i], boxes.yaw[i], boxes.size[i], boxes.center[j], boxes.yaw[j], boxes.size[j])[0]
+    ok = iou >= min_iou
+    return sorted(zip((1.0 - iou[ok]).tolist(), i[ok].tolist(), j[ok].tolist()))
 
 
 def labelled_part_pairs(boxes: Boxes, top: np.ndarray, scores: np.ndarray | None, min_label: float | None,
