@@ -14,7 +14,7 @@ import json
 import click
 
 from ltc_cli.cli import cli
-from ltc_cli.text import plural
+from ltc_cli.text import SkippedFrames, plural, skipped_breakdown
 
 
 @cli.command("export")
@@ -161,13 +161,15 @@ def view_cmd(map_path, recording, reader, reader_opts, every, no_images, save):
     rec = open_recording(recording, reader, reader_options(reader_opts)) if recording else None
     T = rrd.recording_to_map(smap, rec) if rec is not None else None
 
-    def warn(message):
-        click.echo(f"warning: {message}", err=True)
+    skips = SkippedFrames(lambda message: click.echo(f"warning: {message}", err=True))
+
+    def frames(n: int) -> str:
+        skipped = sum(skips.counts.values())
+        return plural(n, "frame") + (f" ({skipped} skipped: {skipped_breakdown(skips.counts)})" if skipped else "")
 
     if save:
-        done = rrd.write_rrd(save, smap, rec, T, every, not no_images, warn)
-        click.echo(f"{save}: {plural(done['objects'], 'object')}, {plural(done['frames'], 'frame')} "
-                   f"(open it with: rerun {save})")
+        done = rrd.write_rrd(save, smap, rec, T, every, not no_images, skips)
+        click.echo(f"{save}: {plural(done['objects'], 'object')}, {frames(done['frames'])} (open it with: rerun {save})")
         return
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise click.ClickException("no display to open the viewer on: write the file with --save map.rrd "
@@ -175,6 +177,6 @@ def view_cmd(map_path, recording, reader, reader_opts, every, no_images, save):
     stream = rrd.new_stream(os.path.basename(map_path))
     stream.spawn()
     n_obj = rrd.log_map(stream, smap)
-    n_frames = rrd.log_recording(stream, rec, T, every, not no_images, warn) if rec is not None else 0
+    n_frames = rrd.log_recording(stream, rec, T, every, not no_images, skips) if rec is not None else 0
     stream.flush()
-    click.echo(f"{map_path}: {plural(n_obj, 'object')}, {plural(n_frames, 'frame')} sent to the Rerun viewer")
+    click.echo(f"{map_path}: {plural(n_obj, 'object')}, {frames(n_frames)} sent to the Rerun viewer")

@@ -80,3 +80,25 @@ def test_view_saves_the_camera_path_and_images(tmp_path):
     assert len(columns(tmp_path / "v.rrd", "/world/camera/rgb")) > 0
     path = columns(tmp_path / "v.rrd", "/world/camera_path")
     assert len(path["LineStrips3D:strips"][0][0]) == 8
+
+
+def test_view_counts_the_frames_it_could_not_read(tmp_path):
+    # Frames 10 and 20 of the every-10th walk have no depth image: each gets its warning line, the
+    # other six are logged, and the summary counts the two by reason, as ingest's does.
+    pytest.importorskip("rerun.chunk", reason="the optional extra ltc[viz] (rerun-sdk) is not installed")
+    import shutil
+
+    rec = tmp_path / "lap1"
+    shutil.copytree(SAMPLE / "lap1", rec)
+    for key in ("000010", "000020"):
+        (rec / "depth" / f"{key}.png").unlink()
+    m = tmp_path / "m.h5"
+    assert CliRunner().invoke(cli, ["ingest", str(SAMPLE / "lap1"), "--map", str(m)]).exit_code == 0
+    out = tmp_path / "v.rrd"
+    r = CliRunner().invoke(cli, ["view", str(m), str(rec), "--every", "10", "--save", str(out)])
+    assert r.exit_code == 0, r.output
+    lines = r.output.splitlines()
+    for key in ("000010", "000020"):
+        assert f"warning: skipped frame {key}: {rec / 'depth' / (key + '.png')}: image file is missing" in lines
+    assert lines[-1] == f"{out}: 18 objects, 6 frames (2 skipped: 2 image file is missing) (open it with: rerun {out})"
+    assert len(columns(out, "/world/camera_path")["LineStrips3D:strips"][0][0]) == 6

@@ -82,21 +82,20 @@ def log_map(rec, smap: SemanticMap) -> int:
 
 
 def log_recording(rec, recording, T_map_world: np.ndarray, every: int = 1, images: bool = True,
-                  warn=None) -> int:
+                  skips: SkippedFrames | None = None) -> int:
     """Log a recording's camera path and, every ``every`` frames, its camera and images on the
-    ``frame`` timeline. Frames that cannot be read are skipped (``warn`` hears of ten of each kind
-    of reason, :class:`~ltc_cli.text.SkippedFrames`). Returns how many frames were logged."""
+    ``frame`` timeline. Frames that cannot be read are skipped, and counted in ``skips`` (which
+    warns of ten of each kind of reason). Returns how many frames were logged."""
     rr = require_rerun()
     intr = recording.intrinsics
     rec.log("world/camera", rr.Pinhole(image_from_camera=intr.K, resolution=[intr.width, intr.height],
                                        camera_xyz=rr.ViewCoordinates.RDF, image_plane_distance=0.3), static=True)
     path, done = [], 0
-    skips = SkippedFrames(warn) if warn else None
     for ref in recording.frames[::max(1, int(every))]:
         try:
             frame = ref.load()
         except FrameError as exc:
-            if skips:
+            if skips is not None:
                 skips.skip(ref.key, exc)
             continue
         T = T_map_world @ frame.T_world_camera
@@ -143,7 +142,7 @@ def new_stream(name: str):
 
 
 def write_rrd(path, smap: SemanticMap, recording=None, T_map_world=None, every: int = 1, images: bool = True,
-              warn=None) -> dict:
+              skips: SkippedFrames | None = None) -> dict:
     """Write the map (and a recording) to an .rrd file, atomically. Returns what was logged."""
     path = Path(path)
     stream = new_stream(path.stem)
@@ -154,7 +153,7 @@ def write_rrd(path, smap: SemanticMap, recording=None, T_map_world=None, every: 
             n_frames = 0
             if recording is not None:
                 n_frames = log_recording(stream, recording, np.eye(4) if T_map_world is None else T_map_world,
-                                         every, images, warn)
+                                         every, images, skips)
             stream.flush()
             stream.disconnect()  # closes the file before it replaces the target
     except OSError as exc:
