@@ -9,7 +9,11 @@ With ``--counts 10,20,40,80``, instead: frames of a wall of small boxes, 10 to 8
 frame, and the median ms per frame of each stage against the count (and per detection), to show
 whether a detection's cost grows with the others in the frame (issue 11).
 
-    python benchmarks/bench_pipeline.py [--frames N] [--counts 10,20,40,80]
+With ``--real``, instead: the stages on ../shared/data/tum-fr1-rpy's 232 real frames (about 16
+objects in view, the fp32 YOLOv8n-seg's detections computed once and replayed), mean ms per frame
+of each stage and the pass's CPU seconds, fastest of ``--repeat`` passes.
+
+    python benchmarks/bench_pipeline.py [--frames N] [--counts 10,20,40,80] [--real]
 """
 
 from __future__ import annotations
@@ -153,6 +157,44 @@ def per_count(counts: list[int], frames: int, repeat: int, cfg: dict) -> None:
               f"{total / n_det:5.2f} ms per detection")
 
 
+def per_real_frame(repeat: int, sets: list[str]) -> None:
+    import tempfile
+
+    from ltc_cli import hookimpl
+    from ltc_cli.ingest.session import ingest
+    from tests.replay import Replay
+
+    root = Path(__file__).resolve().parent.parent
+    shared = next((p for p in (root.parent / "shared", root.parent.parent / "shared") if p.is_dir()), root.parent / "shared")
+    data, model = shared / "data" / "tum-fr1-rpy", shared / "models" / "yolov8n-seg_fp32.onnx"
+    if not (data.is_dir() and model.is_file()):
+        sys.exit(f"bench_pipeline: --real needs {data} and {model}")
+
+    class Replayed:
+        @hookimpl
+        def register_detectors(self, register):
+            register("replay-yolo", Replay)
+
+    plugins.register_plugin(Replayed(), name="bench-pipeline")
+    cfg = load_config(None, ["detector.name=replay-yolo", f"detector.options.model={model}", *sets])
+    names = ("modeling", "association", "integration", "maintenance", "merge")
+    with tempfile.TemporaryDirectory() as tmp:
+        ingest([data], Path(tmp) / "detect.h5", cfg)  # the detections, once
+        runs = []
+        for k in range(repeat):
+            c0 = time.process_time()
+            s = ingest([data], Path(tmp) / f"{k}.h5", cfg)
+            runs.append((time.process_time() - c0, s))
+    cpu, s = min(runs, key=lambda r: r[0])
+    n = max(s.frames_done, 1)
+    cols = "  ".join(f"{k} {1000 * s.stage_seconds[k] / n:6.2f}" for k in names)
+    mapping = 1000 * sum(s.stage_seconds[k] for k in names) / n
+    print(f"tum-fr1-rpy, {s.frames_done} real frames, {s.detections / n:.1f} detections/frame, one thread; "
+          f"mean ms per frame (replayed detections), fastest of {repeat} passes")
+    print(f"{cols}  | stages {mapping:6.2f} ms; image loading {1000 * s.stage_seconds['load'] / n:5.2f} ms; "
+          f"the pass {cpu:.2f} s CPU, {s.objects} objects")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=60)
@@ -160,7 +202,11 @@ def main():
     ap.add_argument("--repeat", type=int, default=3, help="runs per map size; the fastest median is kept "
                     "(a shared machine's noise only ever adds time)")
     ap.add_argument("--counts", help="detections per frame to time instead, e.g. 10,20,40,80")
+    ap.add_argument("--real", action="store_true", help="time the stages on tum-fr1-rpy's real frames instead")
     args = ap.parse_args()
+    if args.real:
+        per_real_frame(args.repeat, args.sets)
+        return
     cfg = load_config(None, args.sets)
     if args.counts:
         per_count([int(c) for c in args.counts.split(",")], args.frames, args.repeat, cfg)
