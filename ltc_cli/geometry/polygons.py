@@ -134,16 +134,20 @@ def pairwise_ious_arrays(center_a, yaw_a, size_a, center_b, yaw_b, size_b):
     if M == 0 or G == 0:
         return xy, vol
 
-    rad_a = 0.5 * np.hypot(size_a[:, 0], size_a[:, 1])
-    rad_b = 0.5 * np.hypot(size_b[:, 0], size_b[:, 1])
-    dist = np.hypot(
-        center_a[:, None, 0] - center_b[None, :, 0], center_a[:, None, 1] - center_b[None, :, 1]
-    )
-    ia, ib = np.nonzero(dist <= rad_a[:, None] + rad_b[None, :] + 1e-9)
+    ia, ib = np.nonzero(footprint_circles_meet(center_a[:, None], size_a[:, None], center_b[None], size_b[None]))
     if len(ia) == 0:
         return xy, vol
     xy[ia, ib], vol[ia, ib] = paired_ious(center_a[ia], yaw_a[ia], size_a[ia], center_b[ib], yaw_b[ib], size_b[ib])
     return xy, vol
+
+
+def footprint_circles_meet(center_a, size_a, center_b, size_b) -> np.ndarray:
+    """Whether the circles around two boxes' footprints meet (centres (..., 3), sizes (..., 3),
+    broadcast): boxes whose circles do not meet share no ground, and need no clipping."""
+    rad_a = 0.5 * np.hypot(size_a[..., 0], size_a[..., 1])
+    rad_b = 0.5 * np.hypot(size_b[..., 0], size_b[..., 1])
+    gap = np.hypot(center_a[..., 0] - center_b[..., 0], center_a[..., 1] - center_b[..., 1])
+    return gap <= rad_a + rad_b + 1e-9
 
 
 def paired_ious(center_a, yaw_a, size_a, center_b, yaw_b, size_b):

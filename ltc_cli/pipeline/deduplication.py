@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ltc_cli.geometry.boxes import Boxes
-from ltc_cli.geometry.polygons import paired_ious
+from ltc_cli.geometry.polygons import footprint_circles_meet, paired_ious
 from ltc_cli.pipeline.association import (
     apart_grounds, footprint_gaps, half_diagonals, pairwise_containment, similar_volume, thresholds_for, too_wide,
     too_long_together, unlike_heights,
@@ -77,10 +77,10 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
     evidence = mutual = None
     if min_evidence is not None and scores is not None:
         evidence, mutual = (shared_evidence(scores, top, min_evidence, both) for both in (False, True))
+    halves = half_diagonals(boxes.size)
     if reach is not None:
-        radii = half_diagonals(boxes.size)
         near = np.linalg.norm(boxes.center[:, None] - boxes.center[None], axis=-1) <= \
-            radii[:, None] + radii[None] + max(same, other, reach) + 1e-6  # within_reach, all pairs at once
+            halves[:, None] + halves[None] + max(same, other, reach) + 1e-6  # within_reach, all pairs at once
     if need_same:
         inside = pairwise_containment(boxes, near)
         inside = np.maximum(inside, inside.T)  # either one inside the other
@@ -103,7 +103,6 @@ def duplicate_pairs(boxes: Boxes, top: np.ndarray, distance, same: float, other:
         i, j = i[near[i, j]], j[near[i, j]]
     if i.size == 0:
         return []
-    halves = half_diagonals(boxes.size)
     larger = np.maximum(halves[i], halves[j])  # as size_caps
     caps = [None if scale is None else scale * larger for scale in (other_scale, same_scale)]
     thr = thresholds_for(top[i], top[j], same, other, *caps)
@@ -219,9 +218,8 @@ def relabel_pairs(boxes: Boxes, top: np.ndarray, min_iou: float | None, other_vo
     # Footprints are clipped only for the pairs the other tests leave, and whose bounding circles meet.
     i, j = np.triu_indices(m, k=1)
     vol = np.prod(boxes.size, axis=1)
-    radius = 0.5 * np.hypot(boxes.size[:, 0], boxes.size[:, 1])
-    gap = np.hypot(*(boxes.center[i, :2] - boxes.center[j, :2]).T)
-    keep = (top[i] != top[j]) & similar_volume(vol[i], vol[j], other_volume_ratio) & (gap <= radius[i] + radius[j] + 1e-9)
+    keep = (top[i] != top[j]) & similar_volume(vol[i], vol[j], other_volume_ratio) \
+        & footprint_circles_meet(boxes.center[i], boxes.size[i], boxes.center[j], boxes.size[j])
     i, j = i[keep], j[keep]
     iou = paired_ious(boxes.center[i], boxes.yaw[i], boxes.size[i], boxes.center[j], boxes.yaw[j], boxes.size[j])[0]
     ok = iou >= min_iou
