@@ -8,7 +8,7 @@ import pytest
 
 from ltc_cli.config import defaults
 from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame
-from ltc_cli.pipeline.pictures import flat_on_wall, on_wall, wall_planes
+from ltc_cli.pipeline.pictures import flat_on_wall, median, on_wall, wall_planes
 from tests.scene import INTR, T_world_camera, face_rect, render
 from tests.test_accuracy_rules import POSTER
 from tests.test_identity import CLASSES
@@ -86,3 +86,22 @@ def test_stage_1_drops_a_poster_above_a_sideboard(share, kept):
     flags = ClassFlags.from_settings(CLASSES, cfg)
     out = model_frame(masks[:1], [tv], depth, T_world_camera(), INTR, (0.3, 6.0), cfg, flags)
     assert len(out.modeled.source) == kept
+
+
+def test_median_by_hand_and_against_numpy():
+    """pictures.median: the middle value (odd count) or the mean of the two middle ones (even), by
+    hand, and np.median(axis=0)'s exact bits on random float32 and float64 data of both counts."""
+    assert median(np.array([3.0, 1.0, 2.0])) == 2.0
+    assert median(np.array([4.0, 1.0, 3.0, 2.0])) == 2.5
+    assert median(np.array([7.0])) == 7.0
+    assert np.array_equal(median(np.array([[1.0, 9.0], [3.0, 5.0]])), [2.0, 7.0])
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 4, 101, 300):
+        for dtype in (np.float32, np.float64):
+            one = (rng.normal(size=n) * 3).astype(dtype)
+            one[: n // 3] = one[-1]  # ties as well
+            many = rng.normal(size=(n, 3)).astype(dtype)
+            for values in (one, many):
+                got, want = median(values), np.median(values, axis=0)
+                assert got.dtype == want.dtype
+                assert np.array_equal(got, want)
