@@ -148,7 +148,7 @@ def test_stage_1_calls_a_low_refrigerator_its_next_class(z1, rule, expected):
     """A 0.6 m wide, 0.6 m deep block 2 m ahead from the floor to z1, in full view (its front top
     corners on the face the camera sees)."""
     cfg = defaults()
-    assert cfg["modeling"]["top_under"] == {"refrigerator": {"height": 1.2, "is": "next"}}
+    assert cfg["modeling"]["top_under"]["refrigerator"] == {"height": 1.2, "is": "next"}
     if not rule:
         cfg["modeling"]["top_under"] = {}
     depth, masks = render([(2.0, 2.6, -0.3, 0.3, 0.0, z1)], wall_x=4.0)
@@ -156,6 +156,27 @@ def test_stage_1_calls_a_low_refrigerator_its_next_class(z1, rule, expected):
                       ClassFlags.from_settings(KITCHEN, cfg), floor_z=0.0)
     assert len(out.modeled.source) == 1 and out.modeled.boxes.visible[0, 4:].any()
     assert KITCHEN[int(top_class(out.scores[0]))] == expected
+
+
+@pytest.mark.parametrize("z0, z1, vector, rule, expected", [
+    (0.0, 0.75, sink_vector(), True, "toilet"),    # a "sink" whose top is seen 0.75 m up: a toilet
+    (0.0, 0.95, sink_vector(), True, "sink"),      # a pedestal basin, its top 0.95 m up
+    (0.7, 0.95, sink_vector(), True, "sink"),      # a basin in a counter
+    (0.0, 0.75, sink_vector(), False, "sink"),     # top_under without sink: the basin stays
+    (0.0, 0.75, toilet_vector(), True, "toilet"),  # a toilet is not judged by its top
+])
+def test_stage_1_calls_a_low_sink_its_next_class(z0, z1, vector, rule, expected):
+    """A 0.5 m wide, 0.5 m deep block 2 m ahead from z0 to z1 (floor at z 0), its top in full view
+    against the wall 2 m behind; "sink" 0.6 with "toilet" second (or the other way round)."""
+    cfg = defaults()
+    assert cfg["modeling"]["top_under"]["sink"] == {"height": 0.8, "is": "next"}
+    if not rule:
+        del cfg["modeling"]["top_under"]["sink"]
+    depth, masks = render([(2.0, 2.5, -0.25, 0.25, z0, z1)], wall_x=4.0)
+    out = model_frame(masks, [vector], depth, T_world_camera(), INTR, (0.3, 6.0), cfg,
+                      ClassFlags.from_settings(CLASSES, cfg), floor_z=0.0)
+    assert len(out.modeled.source) == 1 and out.modeled.boxes.visible[0, 4:].any()
+    assert CLASSES[int(top_class(out.scores[0]))] == expected
 
 
 # modeling.floor_min_top: no piece of furniture that stands on the floor is under 0.3 m tall.
