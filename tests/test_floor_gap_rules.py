@@ -82,7 +82,7 @@ def test_stage_1_judges_toilets_and_sinks_by_their_height_above_the_floor(z0, ve
         assert out.modeled.bottom_gap[0] == pytest.approx(z0 - floor_z, abs=0.04)
 
 
-# modeling.top_under: a refrigerator stands taller than a counter.
+# modeling.top_under: a refrigerator stands taller than a counter, and a basin stands at counter height.
 KITCHEN = ["refrigerator", "oven", "chair"]  # then other
 
 
