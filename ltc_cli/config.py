@@ -12,7 +12,9 @@ its own effective copy (:func:`settings_from`) rather than editing the one it wa
 Merging: a section of fixed keys (``modeling``) is merged key by key. A free mapping (per-class
 tables such as ``modeling.class_depth``, the detector's ``options``) is replaced whole by a file, so
 ``{}`` in a file empties it, while each ``--set`` adds or replaces one key of it (``--set
-modeling.class_depth={}`` empties it too: adding nothing would leave a user's "off" silently on).
+modeling.class_depth={}`` empties it too: adding nothing would leave a user's "off" silently on),
+changes one field of an entry (``--set modeling.top_under.sink.height=0.85``), or, with null,
+takes an entry out (``--set modeling.top_under.sink=null``) where null is no value of the table.
 """
 
 from __future__ import annotations
@@ -116,14 +118,30 @@ def _merge(base: dict, update: dict, node: dict | None, origin: str, replace: bo
         origins[path] = origin
         sub = _child(node, key) if isinstance(key, str) else None
         current = base.get(key)
+        if value is None and not replace and _free(node) and not _takes_null(sub):
+            base.pop(key, None)  # --set TABLE.KEY=null takes the key out of a free mapping
+            continue
         if sub is not None and isinstance(value, dict) and isinstance(current, dict):
-            if "properties" in sub:  # a section of fixed keys: merge key by key
+            # A section of fixed keys merges key by key; so does a free mapping given by --set,
+            # into its entries too (``{}`` empties it): a bound's height alone can be changed.
+            if "properties" in sub or (not replace and value):
                 _merge(current, value, sub, origin, replace, path, origins)
                 continue
-            if not replace and value:  # a free mapping given by --set: add its keys (``{}`` empties it)
-                base[key] = {**current, **copy.deepcopy(value)}
-                continue
         base[key] = copy.deepcopy(value)
+
+
+def _free(node: dict | None) -> bool:
+    """Whether ``node`` is a free mapping (per-class table): its keys are not fixed by the schema."""
+    return node is not None and "properties" not in node and isinstance(node.get("additionalProperties"), dict)
+
+
+def _takes_null(node: dict | None) -> bool:
+    """Whether a value of schema ``node`` may be null (then null is a value, not a removal)."""
+    if node is None:
+        return True
+    kinds = node.get("type")
+    return kinds == "null" or (isinstance(kinds, list) and "null" in kinds) or \
+        any(_takes_null(_resolve(n)) for n in node.get("anyOf", []) + node.get("oneOf", []))
 
 
 def _origin_of(path: tuple, origins: dict):

@@ -39,6 +39,30 @@ def test_mapping_settings(tmp_path):
     assert load_config(None, ["modeling.class_depth={tv: 0.2}"])["modeling"]["class_depth"]["chair"] == 0.5
 
 
+def test_set_reaches_into_a_tables_entries_and_takes_them_out(tmp_path):
+    """--set changes one field of a per-class entry, keeping the rest of the entry and the table;
+    null takes an entry out of a table whose values cannot be null, and is a value where they can."""
+    refrigerator = {"height": 1.2, "is": "next"}
+    cfg = load_config(None, ["modeling.top_under.sink.height=0.85"])
+    assert cfg["modeling"]["top_under"] == {"refrigerator": refrigerator, "sink": {"height": 0.85, "is": "next"}}
+    assert load_config(None, ["modeling.top_under.sink=null"])["modeling"]["top_under"] == {"refrigerator": refrigerator}
+    depth = load_config(None, ["modeling.class_depth.tv=null"])["modeling"]["class_depth"]
+    assert "tv" not in depth and depth["chair"] == 0.5
+    outgrow = load_config(None, ["integration.partial_outgrow.couch=null"])["integration"]["partial_outgrow"]
+    assert outgrow["couch"] is None and outgrow["bed"] == 0.2  # null is a value of this table
+    assert load_config(None, ["detector.options.threads=null"])["detector"]["options"] == {"threads": None}
+    # A whole entry given by --set still replaces what it names and adds a new one.
+    cfg = load_config(None, ["modeling.taller_than.toilet={height: 0.95, is: next}"])
+    assert cfg["modeling"]["taller_than"]["toilet"] == {"height": 0.95, "is": "next"}
+    assert cfg["modeling"]["taller_than"]["laptop"] == {"height": 0.35, "is": "tv"}
+    # A file still replaces the table whole.
+    f = tmp_path / "c.yaml"
+    f.write_text("modeling:\n  top_under: {sink: {height: 0.7, is: next}}\n")
+    assert load_config(f)["modeling"]["top_under"] == {"sink": {"height": 0.7, "is": "next"}}
+    with pytest.raises(ConfigError, match="modeling.top_under.sink.height"):
+        load_config(None, ["modeling.top_under.sink.height=-1"])
+
+
 @pytest.mark.parametrize("item, message", [
     ("modeling.eps=abc", "must be a number"),
     ("modeling.nope=1", "unknown setting 'modeling.nope'"),
