@@ -17,6 +17,7 @@ class ModelingSettings(TypedDict):
     max_points: int
     max_detections: int
     compensate_thinning: bool
+    scale_pixels: bool
     min_depth: float
     max_depth: float
     edge_jump: Optional[float]

@@ -13,13 +13,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ltc_cli.map.model import top_class
-from ltc_cli.pipeline.modeling import ModeledDetections, model_detections
-from ltc_cli.pipeline.pictures import flat_on_wall, mask_point
+from ltc_cli.pipeline.modeling import ModeledDetections, model_detections, pixel_scale, scaled_px
+from ltc_cli.pipeline.pictures import BAND_PX, GAP_PX, flat_on_wall, mask_point
 from ltc_cli.types import Intrinsics
 
 
 #: taller_is value of a rule whose box goes to the detection's own next most likely class.
 NEXT = -2
+#: The rows above a mask's top read for the background behind it (top_in_view): pixels of a 640 x
+#: 480 image, past a CNN mask's bleed, scaled with the image (modeling.scale_pixels).
+TOP_BAND_PX = (3, 12)
 
 
 @dataclass(frozen=True)
@@ -134,11 +137,14 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         keep = np.flatnonzero(~flags.moving[top])
         masks, scores, top = [masks[i] for i in keep], [scores[i] for i in keep], top[keep]
     flat_xyz, flat_top = np.zeros((0, 3)), np.zeros(0, dtype=int)
+    # The bands read past a mask's bleed are pixels of a 640 x 480 image too.
+    px = pixel_scale(depth_m.shape, bool(config["modeling"].get("scale_pixels", False)))
     flatness = config["modeling"]["picture_flatness"]
     if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
         noise = config["modeling"]["picture_depth_noise"] or 0.0
         share = config["modeling"]["picture_wall_share"]
-        flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, noise_per_m2=noise, wall_share=share)
+        flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, band_px=scaled_px(BAND_PX, px),
+                                      gap_px=scaled_px(GAP_PX, px), noise_per_m2=noise, wall_share=share)
                          for m in masks])
         points = [mask_point(masks[i], depth_m, intr, T_map_camera) for i in np.flatnonzero(flat)]
         flat_top = np.array([t for t, p in zip(top[flat], points) if p is not None], dtype=int)
@@ -170,7 +176,8 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         scores = relabel_too_tall(scores, modeled.source, modeled.bottom_gap, flags.max_gap, flags.higher_is)
     if floor_z is not None and flags.min_top is not None and np.isfinite(flags.min_top).any() and len(modeled.source):
         now = np.array([int(top_class(scores[int(i)])) for i in modeled.source], dtype=int)
-        heights, seen = seen_tops(modeled, masks, depth_m, floor_z, flags.min_top[now])
+        heights, seen = seen_tops(modeled, masks, depth_m, floor_z, flags.min_top[now],
+                                  (scaled_px(TOP_BAND_PX[0], px), scaled_px(TOP_BAND_PX[1], px)))
         scores = relabel_low_tops(scores, modeled.source, heights, seen, flags)
     if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
         scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, 2], flags.max_height, flags.taller_is)
@@ -264,7 +271,7 @@ def relabel_too_tall(scores: list[np.ndarray], source: np.ndarray, heights: np.n
     return out
 
 
-def top_in_view(mask: np.ndarray, depth_m: np.ndarray, band: tuple[int, int] = (3, 12), behind: float = 0.15,
+def top_in_view(mask: np.ndarray, depth_m: np.ndarray, band: tuple[int, int] = TOP_BAND_PX, behind: float = 0.15,
                 share: float = 0.5) -> bool:
     """Whether the top edge of a mask (H, W) is its object's top: in the ``band`` of rows above the
     mask's top in each of its columns (from band[0] to band[1] pixels up, past a CNN mask's bleed),
@@ -286,7 +293,7 @@ def top_in_view(mask: np.ndarray, depth_m: np.ndarray, band: tuple[int, int] = (
 
 
 def seen_tops(modeled: ModeledDetections, masks: list[np.ndarray], depth_m: np.ndarray, floor_z: float,
-              min_top: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+              min_top: np.ndarray, band: tuple[int, int] = TOP_BAND_PX) -> tuple[np.ndarray, np.ndarray]:
     """(heights of the boxes' tops above the floor (M,), whether each top was seen (M,)) for
     :func:`relabel_low_tops`. A top is seen when a top corner is visible (the Z-buffer test: not
     hidden, inside the image) and, for a box under its class's ``min_top`` (M,), when its mask ends
@@ -297,7 +304,7 @@ def seen_tops(modeled: ModeledDetections, masks: list[np.ndarray], depth_m: np.n
     top = boxes.center[:, 2] + boxes.size[:, 2] / 2 - floor_z
     seen = boxes.visible[:, 4:].any(axis=1)
     for k in np.flatnonzero(seen & (top < min_top)):
-        seen[k] = top_in_view(masks[int(modeled.source[k])], depth_m)
+        seen[k] = top_in_view(masks[int(modeled.source[k])], depth_m, band)
     return top, seen
 
 

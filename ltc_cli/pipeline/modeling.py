@@ -17,6 +17,43 @@ from ltc_cli.pipeline.priors import background_gap, deepen_slabs, ground_to_floo
 from ltc_cli.types import Intrinsics
 
 
+#: The image the pixel settings are given for: the paper's 640 x 480, by its longer side.
+REFERENCE_SIDE_PX = 640
+#: The settings counted in pixels of that image (``modeling.scale_pixels``).
+PIXEL_SETTINGS = ("thin_max_iterations", "border", "occlusion_window")
+#: Pixels beyond a mask's bounding box where the background around it is read (background_gap).
+BACKGROUND_BAND_PX = 8
+
+
+def pixel_scale(shape: tuple, scale: bool = True) -> float:
+    """This image's pixels per pixel of a 640 x 480 image, by the longer side (1.0 when ``scale``
+    is false). A CNN's mask is blurred by a share of the image, not by a number of pixels: YOLO's
+    come from an 80 x 80 grid over its letterboxed input, so its bleed is 8 px at 640 x 480 and 16
+    px at 1280 x 720; thinning 5 px there leaves half of it (on tum-fr1-rpy drawn at twice the
+    size, the two chairs' bled masks made one 1.4 x 2.0 m "chair")."""
+    return max(int(shape[0]), int(shape[1])) / REFERENCE_SIDE_PX if scale else 1.0
+
+
+def scaled_px(n: int, scale: float) -> int:
+    """``n`` pixels of a 640 x 480 image in one ``scale`` times as long: rounded half up, and at
+    least 1 where ``n`` is."""
+    if n <= 0:
+        return int(n)
+    return max(1, int(np.floor(n * scale + 0.5)))
+
+
+def image_settings(p: dict, shape: tuple) -> tuple[dict, float]:
+    """(the modeling settings ``p`` with their pixel counts (``PIXEL_SETTINGS``) for an image of
+    this shape, the scale): ``p`` itself for a 640-pixel-long image or ``scale_pixels`` false."""
+    s = pixel_scale(shape, bool(p.get("scale_pixels", False)))
+    if s == 1.0:
+        return p, s
+    out = dict(p)
+    for key in PIXEL_SETTINGS:
+        out[key] = scaled_px(int(p[key]), s)
+    return out, s
+
+
 def thin_iterations(mask_h: int, mask_w: int, max_iterations: int, fraction: float) -> int:
     """Thinning iterations for a mask whose bounding box is mask_h x mask_w pixels."""
     return int(min(max_iterations, fraction * min(mask_h, mask_w)))
@@ -247,12 +284,15 @@ def model_detections(
 
     thinning -> eq. 1 back-projection of a subsample -> map frame -> largest cluster -> exact
     minimum-area Z-oriented box -> drop specks and out-of-range boxes -> vertex visibility ->
-    Defined. ``weighted`` (one bool per mask): whose points count for the pixels they stand for
+    Defined. Pixel settings are for a 640 x 480 image and scale with this one
+    (:func:`image_settings`). ``weighted`` (one bool per mask): whose points count for the pixels they stand for
     (``pixel_weights`` by class); None: every mask's when ``pixel_weights`` is true, none otherwise.
     ``max_floor_gap`` (one per mask, inf: none): a ``grounded`` box whose bottom lies higher above
     the floor than this is not grounded (it is no object of its class, ``modeling.higher_than``).
     """
     min_d, max_d = depth_range
+    p, scale = image_settings(p, depth_m.shape)
+    band = scaled_px(BACKGROUND_BAND_PX, scale)
     pts_list, groups, sources, pads, backs, weights, crops = [], [], [], [], [], [], []
     for i, mask in enumerate(masks):
         crop, r0, c0, k = thin_crop(mask, p["thin_max_iterations"], p["thin_fraction"])
@@ -269,7 +309,7 @@ def model_detections(
         # Pixels lost at each side: the thinning band, and on average half a subsampling step.
         pads.append((k + (stride - 1) / 2.0, float(np.median(z))))
         backs.append(background_gap(depth_m, (r0, r0 + crop.shape[0] - 1), (c0, c0 + crop.shape[1] - 1),
-                                     pads[-1][1]))
+                                     pads[-1][1], band))
         pts_cam = backproject(u, v, z, intr)
         pts_list.append(transform(T_map_camera, pts_cam))
         groups.append(np.full(len(z), len(sources)))

@@ -19,6 +19,10 @@ from ltc_cli.types import Intrinsics
 #: Metres a flat detection's point may lie outside the box of the object it counts on: the point is
 #: on the wall, and a poster's box, made from its views that were not judged flat, stands off it.
 PICTURE_MARGIN = 0.1
+#: The band around a mask whose depth is the wall: from GAP_PX to GAP_PX + BAND_PX pixels out of a
+#: 640 x 480 image (past where masks bleed), scaled with the image (modeling.scale_pixels).
+BAND_PX = 10
+GAP_PX = 3
 
 
 def _points_map(v: np.ndarray, u: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray):
@@ -102,7 +106,7 @@ def on_wall(band_xyz: np.ndarray, centre: np.ndarray, normal: np.ndarray, tolera
 
 
 def flat_on_wall(mask: np.ndarray, depth_m: np.ndarray, intr: Intrinsics, T_map_camera: np.ndarray,
-                 tolerance: float, band_px: int = 10, gap_px: int = 3, max_tilt: float = 0.3,
+                 tolerance: float, band_px: int = BAND_PX, gap_px: int = GAP_PX, max_tilt: float = 0.3,
                  min_points: int = 40, step: int = 3, noise_per_m2: float = 0.0, wall_share: float | None = None,
                  min_facing: float = 0.7) -> bool:
     """True when the detection (mask (H, W) bool) lies flat on a wall: the pixels in a band around
