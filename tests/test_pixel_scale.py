@@ -1,5 +1,5 @@
-"""Pixel settings are for a 640 x 480 image and scale with the image (``modeling.scale_pixels``):
-the same scene drawn at twice the size gives the same answers."""
+"""Pixel settings are for a 640 x 480 image and scale up with a larger image
+(``modeling.scale_pixels``): the same scene drawn at twice the size gives the same answers."""
 
 import numpy as np
 import pytest
@@ -16,7 +16,7 @@ def test_pixel_scale_and_rounding_by_hand():
     assert pixel_scale((480, 640)) == 1.0
     assert pixel_scale((720, 1280)) == 2.0  # by the longer side
     assert pixel_scale((480, 848)) == pytest.approx(1.325)
-    assert pixel_scale((240, 320)) == 0.5
+    assert pixel_scale((240, 320)) == 1.0  # smaller images keep the paper's pixels
     assert pixel_scale((720, 1280), scale=False) == 1.0
     assert [scaled_px(n, 2.0) for n in (0, 2, 5, 10)] == [0, 4, 10, 20]
     assert [scaled_px(n, 0.5) for n in (0, 1, 2, 5, 10)] == [0, 1, 1, 3, 5]  # half up; 1 stays 1

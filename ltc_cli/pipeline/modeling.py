@@ -26,12 +26,14 @@ BACKGROUND_BAND_PX = 8
 
 
 def pixel_scale(shape: tuple, scale: bool = True) -> float:
-    """This image's pixels per pixel of a 640 x 480 image, by the longer side (1.0 when ``scale``
-    is false). A CNN's mask is blurred by a share of the image, not by a number of pixels: YOLO's
-    come from an 80 x 80 grid over its letterboxed input, so its bleed is 8 px at 640 x 480 and 16
-    px at 1280 x 720; thinning 5 px there leaves half of it (on tum-fr1-rpy drawn at twice the
-    size, the two chairs' bled masks made one 1.4 x 2.0 m "chair")."""
-    return max(int(shape[0]), int(shape[1])) / REFERENCE_SIDE_PX if scale else 1.0
+    """This image's pixels per pixel of a 640 x 480 image, by the longer side, and never under 1
+    (1.0 when ``scale`` is false). A CNN's mask is blurred by a share of the image, not by a number
+    of pixels: YOLO's come from an 80 x 80 grid over its letterboxed input, so its bleed is 8 px at
+    640 x 480 and 16 px at 1280 x 720; thinning 5 px there leaves half of it (on tum-fr1-rpy drawn
+    at twice the size, the two chairs' bled masks made one 1.4 x 2.0 m "chair"). Smaller images
+    keep the paper's pixels: drawn at half the size, tum-fr1-rpy held 37 of 39 places with them and
+    35 with half of them (docs/decisions.md, issue 9 forty-ninth round)."""
+    return max(1.0, max(int(shape[0]), int(shape[1])) / REFERENCE_SIDE_PX) if scale else 1.0
 
 
 def scaled_px(n: int, scale: float) -> int:
