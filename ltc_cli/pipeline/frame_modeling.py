@@ -21,7 +21,7 @@ from ltc_cli.types import Intrinsics
 #: taller_is value of a rule whose box goes to the detection's own next most likely class.
 NEXT = -2
 #: The rows above a mask's top read for the background behind it (top_in_view): pixels of a 640 x
-#: 480 image, past a CNN mask's bleed, scaled with the image (modeling.scale_pixels).
+#: 480 image, past a CNN mask's bleed, scaled up with a larger image (modeling.scale_pixels).
 TOP_BAND_PX = (3, 12)
 
 

@@ -286,9 +286,10 @@ def model_detections(
 
     thinning -> eq. 1 back-projection of a subsample -> map frame -> largest cluster -> exact
     minimum-area Z-oriented box -> drop specks and out-of-range boxes -> vertex visibility ->
-    Defined. Pixel settings are for a 640 x 480 image and scale with this one
-    (:func:`image_settings`). ``weighted`` (one bool per mask): whose points count for the pixels they stand for
-    (``pixel_weights`` by class); None: every mask's when ``pixel_weights`` is true, none otherwise.
+    Defined. Pixel settings are for a 640 x 480 image and scale up with a larger one
+    (:func:`image_settings`). ``weighted`` (one bool per mask): whose points count for the pixels
+    they stand for (``pixel_weights`` by class); None: every mask's when ``pixel_weights`` is true,
+    none otherwise.
     ``max_floor_gap`` (one per mask, inf: none): a ``grounded`` box whose bottom lies higher above
     the floor than this is not grounded (it is no object of its class, ``modeling.higher_than``).
     """

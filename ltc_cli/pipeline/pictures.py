@@ -20,7 +20,7 @@ from ltc_cli.types import Intrinsics
 #: on the wall, and a poster's box, made from its views that were not judged flat, stands off it.
 PICTURE_MARGIN = 0.1
 #: The band around a mask whose depth is the wall: from GAP_PX to GAP_PX + BAND_PX pixels out of a
-#: 640 x 480 image (past where masks bleed), scaled with the image (modeling.scale_pixels).
+#: 640 x 480 image (past where masks bleed), scaled up with a larger image (modeling.scale_pixels).
 BAND_PX = 10
 GAP_PX = 3
 
