@@ -1,14 +1,19 @@
-"""tum-fr1-rpy drawn at other image sizes, mapped with pixel settings scaled with the image
-(``modeling.scale_pixels``, the default) and as given (the paper's): objects per class, the chairs'
-boxes, and the hand-measured places of tests/real_truth.py held, over the whole recording and its
-even and odd frames (docs/decisions.md, issue 9 forty-ninth round).
+"""tum-fr1-rpy drawn at other image sizes, or with a noisier depth sensor's error, mapped with
+pixel settings scaled with the image (``modeling.scale_pixels``, the default) and as given (the
+paper's): objects per class, the chairs' boxes, and the hand-measured places of
+tests/real_truth.py held, over the whole recording and its even and odd frames (docs/decisions.md,
+issue 9 forty-ninth round).
 
 Each colour image is resized (area or bilinear), each depth image by nearest neighbour, into a
-temporary TUM folder, and the README's fr1 intrinsics are scaled with them. The shared fp32 model
-detects each frame once per size (tests/replay.py Replay); both settings map its detections.
-Needs ../shared; prints what it measured.
+temporary TUM folder, and the README's fr1 intrinsics are scaled with them. ``--depth-noise K``
+adds a stereo camera's error to every reading: a smooth random field (correlated over about 4 px
+of a 640 x 480 image, a new draw per frame) of standard deviation K * Z^2 metres (a RealSense D435
+is about 0.01: 1 cm at 1 m, 4 cm at 2 m). The shared fp32 model detects each frame once per
+variant (tests/replay.py Replay); both settings map its detections (at 640 x 480 and smaller they
+are the same, so one is mapped). Needs ../shared; prints what it measured.
 
-    python benchmarks/bench_sizes.py [--sizes 0.5,1.5,2] [--model ../shared/models/yolov8n-seg_fp32.onnx]
+    python benchmarks/bench_sizes.py [--sizes 0.5,1.5,2] [--depth-noise 0,0.01]
+                                     [--model ../shared/models/yolov8n-seg_fp32.onnx]
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import argparse
 import os
 import sys
 import tempfile
+import zlib
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -47,18 +53,30 @@ class SizesPlugin:
         register("replay-yolo", Replay)
 
 
-def draw_at(src: Path, scale: float, out: Path) -> list[float]:
-    """The recording at ``scale`` times its size in ``out`` (TUM layout), with its even and odd
-    frames beside it (``out``-even, ``out``-odd: rgb.txt filtered, the images linked); returns the
-    scaled intrinsics [fx, fy, cx, cy] (pixel centres kept: c' = (c + 0.5) * scale - 0.5)."""
+def stereo_noise(depth_raw: np.ndarray, k: float, seed: int, scale: float) -> np.ndarray:
+    """A 16-bit TUM depth image (metres * 5000) with a smooth error of std k * Z^2 metres added
+    where it has a reading (see the module's docstring)."""
+    z = depth_raw.astype(np.float64) / 5000.0
+    field = cv2.GaussianBlur(np.random.default_rng(seed).standard_normal(z.shape), (0, 0), 4.0 * scale)
+    noisy = z + field / field.std() * k * z * z
+    return np.where(depth_raw > 0, np.clip(np.round(noisy * 5000.0), 1, 65535), 0).astype(np.uint16)
+
+
+def draw_at(src: Path, scale: float, out: Path, noise: float = 0.0) -> list[float]:
+    """The recording at ``scale`` times its size in ``out`` (TUM layout), its depth with
+    :func:`stereo_noise` ``noise``, with its even and odd frames beside it (``out``-even,
+    ``out``-odd: rgb.txt filtered, the images linked); returns the scaled intrinsics [fx, fy, cx,
+    cy] (pixel centres kept: c' = (c + 0.5) * scale - 0.5)."""
     for sub in ("rgb", "depth"):
         (out / sub).mkdir(parents=True, exist_ok=True)
         for f in sorted((src / sub).iterdir()):
             im = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
             size = (int(round(im.shape[1] * scale)), int(round(im.shape[0] * scale)))
             how = cv2.INTER_NEAREST if sub == "depth" else cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
-            cv2.imwrite(str(out / sub / f.name), cv2.resize(im, size, interpolation=how),
-                        [cv2.IMWRITE_JPEG_QUALITY, 92] if f.suffix == ".jpg" else [])
+            im = cv2.resize(im, size, interpolation=how)
+            if sub == "depth" and noise > 0:
+                im = stereo_noise(im, noise, zlib.crc32(f.name.encode()), scale)
+            cv2.imwrite(str(out / sub / f.name), im, [cv2.IMWRITE_JPEG_QUALITY, 92] if f.suffix == ".jpg" else [])
     for name in ("rgb.txt", "depth.txt", "groundtruth.txt"):
         (out / name).write_text((src / name).read_text())
     lines = (src / "rgb.txt").read_text().splitlines()
@@ -85,6 +103,7 @@ def chairs(map_path) -> str:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="0.5,1.5,2", help="scales of the images, comma-separated")
+    ap.add_argument("--depth-noise", default="0", help="K of a stereo error of std K * Z^2 m, comma-separated")
     ap.add_argument("--model", default=str(SHARED / "models" / "yolov8n-seg_fp32.onnx"))
     args = ap.parse_args()
     src = SHARED / "data" / NAME
@@ -93,13 +112,15 @@ def main():
     plugins.register_plugin(SizesPlugin(), name="bench-sizes")
     settings = {"scaled (default)": [], "as given": ["modeling.scale_pixels=false"]}
     with tempfile.TemporaryDirectory() as tmp:
-        for scale in (float(s) for s in args.sizes.split(",")):
-            folder = Path(tmp) / f"x{scale:g}"
-            intr = draw_at(src, scale, folder)
+        variants = [(float(a), float(b)) for a in args.sizes.split(",") for b in args.depth_noise.split(",")]
+        for scale, noise in variants:
+            folder = Path(tmp) / f"x{scale:g}-n{noise:g}"
+            intr = draw_at(src, scale, folder, noise)
             Replay.store.clear()  # a recording's identity is its lists, the same at every size
             w, h = int(round(640 * scale)), int(round(480 * scale))
-            print(f"{NAME} at {w} x {h} (intrinsics {', '.join(f'{v:.2f}' for v in intr)}):")
-            for label, sets in settings.items():
+            print(f"{NAME} at {w} x {h}" + (f", depth error {noise:g} * Z^2 m" if noise else "")
+                  + f" (intrinsics {', '.join(f'{v:.2f}' for v in intr)}):")
+            for label, sets in list(settings.items())[: 2 if scale > 1 else 1]:
                 cfg = load_config(None, ["detector.name=replay-yolo", f"detector.options.model={args.model}", *sets])
                 held, lines = 0, []
                 for part, path in zip(PASSES, (folder, folder.parent / f"{folder.name}-even",
