@@ -65,6 +65,7 @@ class AssociationSettings(TypedDict):
     seen_apart_gap: Optional[float]
     seen_apart_share: float
     max_union_length: dict[str, float]
+    bound_merged_length: bool
     min_visible_pairs: int
     containment: Optional[float]
     containment_other_class: Optional[float]

@@ -319,6 +319,21 @@ def enclosed_part(a, b) -> bool:
     return float(whole.size[0] * whole.size[1]) < float(part.size[0] * part.size[1])
 
 
+def beyond_class_length(merged_top: int, merged_long: float, tops, longs, limit: np.ndarray) -> bool:
+    """Whether a merge of objects of classes ``tops`` (footprints' longer sides ``longs``) into one
+    of class ``merged_top`` whose footprint's longer side is ``merged_long`` leaves a thing of a
+    class never that long (``limit`` (C+1,): ``association.max_union_length``, inf: any). As in
+    :func:`~ltc_cli.pipeline.association.too_long_together`, a side of that class already longer
+    alone (a monitor's foot called "mouse") is no such thing, and the rule says nothing of it.
+    Under a noisy depth (tum-fr1-rpy, a stereo-like error 0.01 Z^2) a 2-detection "mouse" merged
+    with a 0.47 m "book" in the frame that made it, and became a 0.47 m mouse: the mouse's label,
+    the book's Defined box."""
+    lim = float(limit[merged_top])
+    if not np.isfinite(lim) or merged_long <= lim:
+        return False
+    return all(long <= lim for top, long in zip(tops, longs) if top == merged_top)
+
+
 #: Keys of :func:`merge_pairs` from this on are pieces of one object (:func:`adjoining_part_pairs`).
 PIECES_KEY = 4e6
 

@@ -11,7 +11,9 @@ import numpy as np
 from ltc_cli.geometry.camera import invert_pose
 from ltc_cli.map.model import ACTIVE, MERGED, top_class
 from ltc_cli.pipeline.association import footprint_gaps, match_reach, seen_elsewhere
-from ltc_cli.pipeline.deduplication import PIECES_KEY, enclosed_part, greedy_merges, label_survivor, merge_pairs
+from ltc_cli.pipeline.deduplication import (
+    PIECES_KEY, beyond_class_length, enclosed_part, greedy_merges, label_survivor, merge_pairs,
+)
 from ltc_cli.pipeline.frame_modeling import not_whole
 from ltc_cli.pipeline.integration import (
     confirmed_side, enclosing_box, label_weight, merge_objects, merged_box, merged_scores, one_view_claims,
@@ -60,6 +62,8 @@ class InstanceMerging:
                             paired=bool(getattr(self.metric, "paired", False)))
         if a_cfg["seen_apart_gap"] is not None and self._depth_view is not None:
             pairs = self._not_seen_apart(rows, pairs)
+        if a_cfg["bound_merged_length"] and np.isfinite(self.per_class.max_union).any():
+            pairs = [p for p in pairs if top[p[1]] == top[p[2]] or not self._too_long_merged(rows[p[1]], rows[p[2]])]
         merges = greedy_merges(pairs, rows + 1, lambda a, b: self._survivor(rows, a, b), disjoint)
         pieces = {(a, b) for key, a, b in pairs if key >= PIECES_KEY} - {(a, b) for key, a, b in pairs
                                                                           if key < PIECES_KEY}
@@ -69,6 +73,15 @@ class InstanceMerging:
             self._absorb(int(rows[keep]), int(rows[drop]), frame_index, frame_key,
                          pieces=(min(keep, drop), max(keep, drop)) in pieces)
         return len(merges)
+
+    def _too_long_merged(self, a: int, b: int) -> bool:
+        """Whether merging map objects a and b (rows of two top classes) would make a thing longer
+        than its class ever is (:func:`beyond_class_length`): then they stay two."""
+        t = self.map.objects
+        box, scores = self._merged(min(a, b), max(a, b))
+        rows = [a, b]
+        return beyond_class_length(int(top_class(scores)), float(box.size[:2].max()), top_class(t.scores[rows]),
+                                   t.size[rows, :2].max(axis=1), self.per_class.max_union)
 
     def _not_seen_apart(self, rows: np.ndarray, pairs: list) -> list:
         """The merge pairs (key, a, b) over ``rows`` less those :func:`seen_elsewhere` parts: two
