@@ -222,6 +222,7 @@ def info(map_path, fmt):
             {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped", "v_other")}
             | {"visit": max(1, int(s.get("visit") or 0)), "v_other_learnt": _learnt_rate(s)}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
+            | {"cameras": json.loads(s.get("cameras") or "[]")}
             for s in smap.sessions
         ],
         "up_rotation": np.asarray(smap.up_rotation).round(6).tolist(),
@@ -248,8 +249,17 @@ def info(map_path, fmt):
         click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped){visit}  "
                    f"{s['detector']}/{s['metric']}/{s['policy']} v_other="
                    f"{'learnt per class' if s['v_other_learnt'] else format(s['v_other'], '.3g')}  {', '.join(s['sources'])}")
+        for cam in dict.fromkeys(_camera_text(c) for c in s["cameras"]):  # each camera once, in order
+            click.echo(f"     camera {cam}")
     click.echo(f"{map_path}: {_plural(o['active'], 'object')} of {_plural(len(per_class), 'class')} from "
                f"{_plural(len(smap.frame_keys), 'frame')} in {_plural(len(smap.sessions), 'session')}")
+
+
+def _camera_text(c: dict) -> str:
+    """A session's camera (ingest's camera_record) as one line of ``ltc info``."""
+    named = f"  (calibration: {c['camera']})" if c.get("camera") else ""
+    return (f"{c['width']} x {c['height']}, fx {c['fx']:g} fy {c['fy']:g} cx {c['cx']:g} cy {c['cy']:g}"
+            + named)
 
 
 @cli.command("plugins")

@@ -218,6 +218,17 @@ def _visit_of(row: dict) -> int:
     return max(1, int(row.get("visit") or 0))  # rows written before --revisit hold 0: a first visit
 
 
+def camera_record(rec: Recording) -> dict:
+    """The camera a recording was read with, for its session row: the image size and pinhole
+    parameters, and the reader's name for the calibration when it chose one (tum: fr1-fr3, or
+    ros when the folder's name tells no sensor)."""
+    intr = rec.intrinsics
+    row = {"width": int(intr.width), "height": int(intr.height),
+           **{k: round(float(getattr(intr, k)), 6) for k in ("fx", "fy", "cx", "cy")}}
+    named = (rec.meta or {}).get("camera")  # recording.yaml's camera section is no name
+    return row | ({"camera": named} if isinstance(named, str) and named else {})
+
+
 def _session_row(smap: SemanticMap, plan: Plan) -> tuple[int, dict]:
     recordings = [s.recording for s in plan.setups]
     identities = [r.identity for r in recordings]
@@ -249,6 +260,7 @@ def _session_row(smap: SemanticMap, plan: Plan) -> tuple[int, dict]:
         "frames_done": 0, "frames_skipped": 0, "visit": visit,
         "up_rotation": json.dumps([np.asarray(s.R_up).round(9).tolist() for s in plan.setups]),
         "floor_z": json.dumps([None if s.floor_z is None else round(float(s.floor_z), 6) for s in plan.setups]),
+        "cameras": json.dumps([camera_record(r) for r in recordings]),
     }
     smap.sessions.append(row)
     return len(smap.sessions) - 1, row
