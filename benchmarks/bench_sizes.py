@@ -8,11 +8,12 @@ Each colour image is resized (area or bilinear), each depth image by nearest nei
 temporary TUM folder, and the README's fr1 intrinsics are scaled with them. ``--depth-noise K``
 adds a stereo camera's error to every reading: a smooth random field (correlated over about 4 px
 of a 640 x 480 image, a new draw per frame) of standard deviation K * Z^2 metres (a RealSense D435
-is about 0.01: 1 cm at 1 m, 4 cm at 2 m). The shared fp32 model detects each frame once per
+is about 0.01: 1 cm at 1 m, 4 cm at 2 m); ``--tell-noise`` sets ``modeling.depth_noise`` to it as
+well, as a user of that sensor would. The shared fp32 model detects each frame once per
 variant (tests/replay.py Replay); both settings map its detections (at 640 x 480 and smaller they
 are the same, so one is mapped). Needs ../shared; prints what it measured.
 
-    python benchmarks/bench_sizes.py [--sizes 0.5,1.5,2] [--depth-noise 0,0.01]
+    python benchmarks/bench_sizes.py [--sizes 0.5,1.5,2] [--depth-noise 0,0.01 [--tell-noise]]
                                      [--model ../shared/models/yolov8n-seg_fp32.onnx]
 """
 
@@ -104,6 +105,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="0.5,1.5,2", help="scales of the images, comma-separated")
     ap.add_argument("--depth-noise", default="0", help="K of a stereo error of std K * Z^2 m, comma-separated")
+    ap.add_argument("--tell-noise", action="store_true",
+                    help="also tell ltc the added error (modeling.depth_noise = K), as a user of that sensor would")
     ap.add_argument("--model", default=str(SHARED / "models" / "yolov8n-seg_fp32.onnx"))
     args = ap.parse_args()
     src = SHARED / "data" / NAME
@@ -119,9 +122,12 @@ def main():
             Replay.store.clear()  # a recording's identity is its lists, the same at every size
             w, h = int(round(640 * scale)), int(round(480 * scale))
             print(f"{NAME} at {w} x {h}" + (f", depth error {noise:g} * Z^2 m" if noise else "")
+                  + (" (told: modeling.depth_noise)" if noise and args.tell_noise else "")
                   + f" (intrinsics {', '.join(f'{v:.2f}' for v in intr)}):")
             for label, sets in list(settings.items())[: 2 if scale > 1 else 1]:
-                cfg = load_config(None, ["detector.name=replay-yolo", f"detector.options.model={args.model}", *sets])
+                told = [f"modeling.depth_noise={noise:g}"] if args.tell_noise and noise > 0 else []
+                cfg = load_config(None, ["detector.name=replay-yolo", f"detector.options.model={args.model}", *sets,
+                                         *told])
                 held, lines = 0, []
                 for part, path in zip(PASSES, (folder, folder.parent / f"{folder.name}-even",
                                                folder.parent / f"{folder.name}-odd")):

@@ -161,9 +161,11 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         src = top[modeled.source]
         modeled = drop_deep_slabs(modeled, deepest_sides(flags.depth_prior[src], ratio,
                                                          None if flags.max_depth is None else flags.max_depth[src]))
+    noise = float(config["modeling"].get("depth_noise") or 0.0)
     if flags.max_length is not None and len(modeled.source):
         # A 0.21 m "cup" is a mug's mask bled onto the desk behind its rim (tum-fr1-rpy).
-        modeled = modeled.take(np.flatnonzero(modeled.boxes.size[:, :2].max(axis=1)
+        margin = noise_margin(modeled.boxes.center, T_map_camera, noise)
+        modeled = modeled.take(np.flatnonzero(modeled.boxes.size[:, :2].max(axis=1) - margin
                                               <= flags.max_length[top[modeled.source]]))
     min_top = config["modeling"]["floor_min_top"]
     if min_top is not None and floor_z is not None and len(modeled.source):
@@ -180,12 +182,14 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
                                   (scaled_px(TOP_BAND_PX[0], px), scaled_px(TOP_BAND_PX[1], px)))
         scores = relabel_low_tops(scores, modeled.source, heights, seen, flags)
     if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
-        scores = relabel_too_tall(scores, modeled.source, modeled.boxes.size[:, 2], flags.max_height, flags.taller_is)
+        heights = modeled.boxes.size[:, 2] - noise_margin(modeled.boxes.center, T_map_camera, noise)
+        scores = relabel_too_tall(scores, modeled.source, heights, flags.max_height, flags.taller_is)
     longer = modeled.boxes.size[:, :2].max(axis=1) if len(modeled.source) else np.zeros(0)
     if flags.max_width is not None and np.isfinite(flags.max_width).any() and len(modeled.source):
         # A box is seen narrower than its object (a part of it), never wider: a 0.56 m wide
         # "laptop" is no laptop (tum-fr1-rpy's fourth monitor, only its top edge in view).
-        scores = relabel_too_tall(scores, modeled.source, longer, flags.max_width, flags.wider_is)
+        widths = longer - noise_margin(modeled.boxes.center, T_map_camera, noise)
+        scores = relabel_too_tall(scores, modeled.source, widths, flags.max_width, flags.wider_is)
     if flags.min_width is not None and (flags.min_width > 0).any() and len(modeled.source):
         scores = relabel_too_narrow(scores, modeled.source, longer, modeled.defined, flags.min_width,
                                     flags.narrower_is)
@@ -342,3 +346,24 @@ def most_confident(dets: list, k: int) -> list:
     """The k detections with the highest top score, in their original order."""
     top = np.argsort([-float(np.max(d.scores)) for d in dets], kind="stable")[:k]
     return [dets[i] for i in sorted(top)]
+
+
+#: The depth error (std at 1 m) of the sensor the size bounds were measured with: tum-fr1-rpy's
+#: Kinect v1 (Khoshelham and Elberink 2012: about 0.0019 Z^2). Its noise is in them already.
+BOUNDS_SENSOR_NOISE = 0.0019
+
+
+def noise_margin(centers_xyz: np.ndarray, T_map_camera: np.ndarray, sigma_per_m2: float) -> np.ndarray:
+    """(M,) how much longer than its object a box centred at ``centers_xyz`` (M, 3, map frame) may
+    be measured with a sensor noisier than the bounds' (:data:`BOUNDS_SENSOR_NOISE`): two of the
+    excess standard deviation, ``2 (sigma_per_m2 - 0.0019) Z^2``, at the centre's depth Z in the
+    camera (T_map_camera (4, 4), camera-to-map). A box spans its points, and each end moves with
+    the error along its rays: on tum-fr1-rpy with a stereo-like error of std 0.02 Z^2 the game
+    controller's boxes, 0.095 m tall at the median, were 0.127 m (a "mouse" over 0.12 m is a
+    monitor's foot, ``taller_than``)."""
+    excess = max(0.0, float(sigma_per_m2 or 0.0) - BOUNDS_SENSOR_NOISE)
+    if not len(centers_xyz) or not excess:
+        return np.zeros(len(centers_xyz))
+    R, t = T_map_camera[:3, :3], T_map_camera[:3, 3]
+    z_camera = (np.asarray(centers_xyz) - t) @ R[:, 2]  # the inverse pose's third row
+    return 2.0 * excess * z_camera * z_camera
