@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ltc_cli.errors import ConfigError, LtcError
+from ltc_cli.pipeline.modeling import pixel_scale, scaled_px
 from ltc_cli.recordings.writer import RecordingWriter
 from ltc_cli.tools.simulate.changes import change_house
 from ltc_cli.tools.simulate.detector import detect
@@ -81,6 +82,10 @@ def simulate(outdir, scene: str = "small", laps: int = 2, seed: int = 0, width: 
     sim_options = recorded_options(opts)
     sim_options["frames_per_room"] = frames_per_room
     sim_options["min_pixels"] = min_pixels
+    # A CNN's mask bleeds by a share of the image (YOLOv8-seg's masks come from an 80 x 80 grid
+    # over its input): bleed_px is for 640 x 480 and grows with a larger image, as ltc's pixel
+    # settings do (modeling.scale_pixels); the recording states the option as given.
+    opts = {**opts, "bleed_px": bleed_at(opts["bleed_px"], width, height)}
     simulator = {"scene": scene, "seed": seed}
     if profile != "benign":  # (absent: benign, as every recording made before profiles existed)
         simulator["profile"] = profile
@@ -177,3 +182,9 @@ def write_lap(writer: RecordingWriter, house: House, poses, renderer: Renderer, 
         })
     writer.write_ground_truth(objects, lap, changes)
     return writer.close()
+
+
+def bleed_at(bleed_px: int, width: int, height: int) -> int:
+    """The simulated mask bleed in an image of this size: ``bleed_px`` is for 640 x 480 and grows
+    with a larger image's longer side, rounded half up (:func:`~ltc_cli.pipeline.modeling.scaled_px`)."""
+    return scaled_px(int(bleed_px), pixel_scale((int(height), int(width))))

@@ -67,7 +67,7 @@ BASE_DEFAULTS = {
     # Detector.
     "miss_rate": 0.15,
     "confusion_rate": 0.05,
-    "bleed_px": 3,
+    "bleed_px": 3,  # at 640 x 480; scaled up with a larger image's longer side
     "false_positive_rate": 0.05,  # per frame
     "split_rate": 0.03,  # a mask split in two (over-segmentation)
     "min_pixels": None,  # fewer visible pixels: never detected; default 5e-4 of the image, >= 20
