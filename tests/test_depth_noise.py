@@ -1,6 +1,7 @@
 """modeling.depth_noise (issue 9, fiftieth round): the size bounds (taller_than, wider_than,
-max_long_side) were measured with a Kinect's depth error in the boxes; a noisier sensor's boxes may
-be longer by two of its excess standard deviation at their range. Expected values by hand."""
+max_long_side) hold a depth error up to 0.005 Z^2 (tum-fr1-rpy's Kinect, the simulator's sensor); a
+noisier sensor's boxes may be longer by two of its excess standard deviation at their range.
+Expected values by hand."""
 
 import numpy as np
 import pytest
@@ -25,11 +26,11 @@ def test_noise_margin_by_hand():
     # one 2 m ahead and 0.5 m aside at Z = 2 (depth, not range).
     centers = np.array([[1.2, 0.0, CAM_Z], [2.0, 0.5, CAM_Z + 0.3]])
     T = T_world_camera()
-    assert BOUNDS_SENSOR_NOISE == 0.0019
-    # 2 (0.02 - 0.0019) Z^2: 0.0362 * 1.44 = 0.052128, 0.0362 * 4 = 0.1448.
-    assert noise_margin(centers, T, 0.02) == pytest.approx([0.052128, 0.1448])
-    # At the Kinect's noise or less, or none given, the bounds are as given.
-    for sigma in (0.0019, 0.001, 0.0, None):
+    assert BOUNDS_SENSOR_NOISE == 0.005
+    # 2 (0.02 - 0.005) Z^2: 0.03 * 1.44 = 0.0432, 0.03 * 4 = 0.12.
+    assert noise_margin(centers, T, 0.02) == pytest.approx([0.0432, 0.12])
+    # At the bounds' own noise or less (a Kinect's 0.0019), or none given, the bounds are as given.
+    for sigma in (0.005, 0.0019, 0.0, None):
         assert noise_margin(centers, T, sigma).tolist() == [0.0, 0.0]
     assert noise_margin(np.zeros((0, 3)), T, 0.02).shape == (0,)
 
@@ -48,22 +49,22 @@ def model(z_top: float, sigma, cls: int = MOUSE, width: float = 0.15):
 
 
 def test_a_mouse_grown_by_a_noisy_sensor_stays_a_mouse():
-    # 0.14 m tall, over taller_than's 0.12: with the Kinect's noise (the default) a monitor's foot.
+    # 0.14 m tall, over taller_than's 0.12: with a Kinect's noise (the default) a monitor's foot.
     size, cls = model(0.94, None)
     assert size[2] == pytest.approx(0.14, abs=0.01)
     assert cls == "tv"
-    assert model(0.94, 0.0019)[1] == "tv"
+    assert model(0.94, 0.005)[1] == "tv"
     # Told the sensor's error is 0.02 Z^2: the margin at the box's centre (Z about 1.225, the face
-    # and the 0.05 m minimum thickness behind it) is 2 * 0.0181 * 1.5 = 0.054: 0.14 - 0.054 is
+    # and the 0.05 m minimum thickness behind it) is 2 * 0.015 * 1.5 = 0.045: 0.14 - 0.045 is
     # under 0.12, a mouse.
     assert model(0.94, 0.02)[1] == "mouse"
-    # A 0.2 m foot with its neck stays a foot: 0.2 - 0.054 is still over 0.12.
+    # A 0.2 m foot with its neck stays a foot: 0.2 - 0.045 is still over 0.12.
     assert model(1.0, 0.02)[1] == "tv"
 
 
 def test_a_cup_grown_by_a_noisy_sensor_is_kept():
     # max_long_side cup 0.2: a 0.22 m wide "cup" is dropped with the defaults, and kept by a
-    # sensor told to err by 0.02 Z^2 (0.22 - 0.054 < 0.2); a 0.3 m one is dropped either way.
+    # sensor told to err by 0.02 Z^2 (0.22 - 0.045 < 0.2); a 0.3 m one is dropped either way.
     assert model(0.9, None, CUP, 0.22) == (None, None)
     size, cls = model(0.9, 0.02, CUP, 0.22)
     assert cls == "cup" and size[:2].max() == pytest.approx(0.22, abs=0.01)
