@@ -142,6 +142,8 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     flatness = config["modeling"]["picture_flatness"]
     if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
         noise = config["modeling"]["picture_depth_noise"] or 0.0
+        if noise:  # a noisier sensor's wall is rougher: two of its excess std more
+            noise += 2.0 * excess_noise(config["modeling"].get("depth_noise"))
         share = config["modeling"]["picture_wall_share"]
         flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, band_px=scaled_px(BAND_PX, px),
                                       gap_px=scaled_px(GAP_PX, px), noise_per_m2=noise, wall_share=share)
@@ -354,6 +356,12 @@ def most_confident(dets: list, k: int) -> list:
 BOUNDS_SENSOR_NOISE = 0.005
 
 
+def excess_noise(sigma_per_m2: float | None) -> float:
+    """How much a sensor's depth error (std at 1 m) exceeds what the bounds hold already
+    (:data:`BOUNDS_SENSOR_NOISE`); 0 for a sensor as good or better, or none given."""
+    return max(0.0, float(sigma_per_m2 or 0.0) - BOUNDS_SENSOR_NOISE)
+
+
 def noise_margin(centers_xyz: np.ndarray, T_map_camera: np.ndarray, sigma_per_m2: float) -> np.ndarray:
     """(M,) how much longer than its object a box centred at ``centers_xyz`` (M, 3, map frame) may
     be measured with a sensor noisier than the bounds' (:data:`BOUNDS_SENSOR_NOISE`): two of the
@@ -362,7 +370,7 @@ def noise_margin(centers_xyz: np.ndarray, T_map_camera: np.ndarray, sigma_per_m2
     the error along its rays: on tum-fr1-rpy with a stereo-like error of std 0.02 Z^2 the game
     controller's boxes, 0.095 m tall at the median, were 0.127 m (a "mouse" over 0.12 m is a
     monitor's foot, ``taller_than``)."""
-    excess = max(0.0, float(sigma_per_m2 or 0.0) - BOUNDS_SENSOR_NOISE)
+    excess = excess_noise(sigma_per_m2)
     if not len(centers_xyz) or not excess:
         return np.zeros(len(centers_xyz))
     R, t = T_map_camera[:3, :3], T_map_camera[:3, 3]
