@@ -6,13 +6,10 @@ swallowed the table."""
 import numpy as np
 import pytest
 
-from ltc_cli import plugins
 from ltc_cli.config import defaults
-from ltc_cli.geometry.camera import invert_pose
-from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap
+from ltc_cli.map.model import ACTIVE, MERGED
 from ltc_cli.pipeline.deduplication import greedy_merges
-from ltc_cli.pipeline.mapper import Mapper
-from tests.scene import INTR, T_world_camera
+from tests.mappers import mapper_with_boxes, merge_seen_from_origin
 
 CLASSES = ["chair", "dining table"]
 
@@ -32,25 +29,17 @@ SCORES = [[0.9, 0.0, 0.1], [0.2, 0.7, 0.1], [0.0, 0.9, 0.1]]
 N_DET = [14, 14, 2]
 
 
-def mapper_with_scene(recheck: bool) -> Mapper:
+def mapper_with_scene(recheck: bool):
     cfg = defaults()
     cfg["association"]["merge_recheck"] = recheck
-    smap = SemanticMap.new(CLASSES)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]))
-    for center, size, defined, scores, n_det in zip(CENTER, SIZE, DEFINED, SCORES, N_DET):
-        center, size = np.array(center), np.array(size)
-        row = smap.objects.append(center=center, yaw=0.0, size=size, visible=np.ones(8, bool), defined=defined,
-                                  scores=np.array(scores), n_det=n_det, n_nondet=0, status=ACTIVE)
-        mapper.index.insert(row, center, size)
-    return mapper
+    return mapper_with_boxes(CLASSES, cfg, CENTER, SIZE, DEFINED, SCORES, N_DET)
 
 
 @pytest.mark.parametrize("recheck", [True, False])
 def test_the_chair_keeps_out_of_the_table_once_its_box_is_the_table(recheck):
     mapper = mapper_with_scene(recheck)
     t = mapper.map.objects
-    merged = mapper._merge_in_view(0, "f0", invert_pose(T_world_camera()), INTR, 6.0)
+    merged = merge_seen_from_origin(mapper)
     if not recheck:
         # The old way: both pairs found on the first boxes, both applied; the chair and the table
         # end as one object.

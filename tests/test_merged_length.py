@@ -6,13 +6,10 @@ the mouse's label with the book's Defined box. Expected values by hand."""
 import numpy as np
 import pytest
 
-from ltc_cli import plugins
 from ltc_cli.config import defaults
-from ltc_cli.geometry.camera import invert_pose
-from ltc_cli.map.model import ACTIVE, MERGED, SemanticMap, top_class
+from ltc_cli.map.model import ACTIVE, MERGED, top_class
 from ltc_cli.pipeline.deduplication import beyond_class_length
-from ltc_cli.pipeline.mapper import Mapper
-from tests.scene import INTR, T_world_camera
+from tests.mappers import mapper_with_boxes, merge_seen_from_origin
 
 LIMIT = np.array([0.25, np.inf, np.inf, np.inf])  # mouse 0.25 m; book, keyboard, other: any
 
@@ -44,37 +41,27 @@ DEFINED = [True, False]
 SCORES = [[0.0, 0.505, 0.44, 0.055], [0.8, 0.15, 0.0, 0.05]]
 
 
-def mapper_with_pair(bound: bool) -> Mapper:
+def merged_pair(bound: bool):
+    """(the object table, merges made) after the merge step over the pair, with the setting."""
     cfg = defaults()
     cfg["association"]["bound_merged_length"] = bound
-    smap = SemanticMap.new(CLASSES)
-    mapper = Mapper(smap, cfg, plugins.get("metrics", "vertex").factory(cfg["association"]),
-                    plugins.get("policies", "non-detection").factory(cfg["maintenance"]))
-    for center, size, defined, scores in zip(CENTER, SIZE, DEFINED, SCORES):
-        center, size = np.array(center), np.array(size)
-        row = smap.objects.append(center=center, yaw=0.0, size=size, visible=np.ones(8, bool), defined=defined,
-                                  scores=np.array(scores), n_det=2, n_nondet=0, status=ACTIVE)
-        mapper.index.insert(row, center, size)
-    return mapper
+    mapper = mapper_with_boxes(CLASSES, cfg, CENTER, SIZE, DEFINED, SCORES, [2, 2])
+    return mapper.map.objects, merge_seen_from_origin(mapper)
 
 
-@pytest.mark.parametrize("bound", [True, False])
-def test_a_mouse_does_not_take_a_books_box(bound):
-    mapper = mapper_with_pair(bound)
-    t = mapper.map.objects
-    merged = mapper._merge_in_view(0, "f0", invert_pose(T_world_camera()), INTR, 6.0)
-    if not bound:
-        # The failure: one object, labelled mouse, with the book's 0.47 m box.
-        assert merged == 1
-        keep = int(np.flatnonzero(t.status == ACTIVE)[0])
-        assert CLASSES[int(top_class(t.scores[keep]))] == "mouse"
-        assert t.scores[keep][0] == pytest.approx(0.4)
-        np.testing.assert_allclose(t.size[keep], SIZE[0])
-        assert MERGED in list(t.status)
-        return
-    assert merged == 0
-    assert list(t.status) == [ACTIVE, ACTIVE]
+def test_with_the_bound_the_mouse_and_the_book_stay_two():
+    t, merges = merged_pair(True)
+    assert merges == 0 and list(t.status) == [ACTIVE, ACTIVE]
     for row in range(2):
         np.testing.assert_allclose(t.center[row], CENTER[row])
         np.testing.assert_allclose(t.size[row], SIZE[row])
         np.testing.assert_allclose(t.scores[row], SCORES[row])
+
+
+def test_without_it_the_mouse_takes_the_books_box():
+    t, merges = merged_pair(False)
+    assert merges == 1 and MERGED in list(t.status)
+    keep = int(np.flatnonzero(t.status == ACTIVE)[0])
+    assert CLASSES[int(top_class(t.scores[keep]))] == "mouse"
+    assert t.scores[keep][0] == pytest.approx(0.4)
+    np.testing.assert_allclose(t.size[keep], SIZE[0])
