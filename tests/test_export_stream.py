@@ -4,6 +4,7 @@ digests of the exports written before streaming existed, and value by value agai
 
 import hashlib
 import json
+import re
 
 import numpy as np
 import pytest
@@ -51,6 +52,9 @@ GOLDEN = {
 @pytest.mark.parametrize("fmt,origin", list(GOLDEN))
 def test_streamed_text_is_the_text_written_before(fmt, origin):
     text = b"".join(export_chunks(big_map(300, seed=7), fmt, origin, "big.h5"))
+    if fmt == "json":  # sessions carry their cameras since the fiftieth round (none in this map)
+        assert text.count(b'"cameras": []') == 1
+        text = re.sub(rb',\s*"cameras": \[\]', b"", text)
     assert (len(text), hashlib.sha256(text).hexdigest()) == GOLDEN[(fmt, origin)]
 
 

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import h5py
+import jsonschema
 import yaml
 from click.testing import CliRunner
 
@@ -43,6 +44,12 @@ def test_info_shows_each_sessions_camera(tmp_path):
     assert [ln.strip() for ln in out.splitlines() if ln.strip().startswith("camera ")] == [line]  # no name
     doc = json.loads(run("info", m, "--format", "json").output)
     assert doc["sessions"][0]["cameras"] == [cam]
+    out = tmp_path / "map.json"  # the JSON export carries it too, and its schema holds
+    assert run("export", m, "--format", "json", "-o", out).exit_code == 0
+    exported = json.loads(out.read_text())
+    assert exported["map"]["sessions"][0]["cameras"] == [cam]
+    schema = json.loads((Path(__file__).resolve().parent.parent / "schemas" / "export.schema.json").read_text())
+    jsonschema.validate(exported, schema)
 
 
 def test_maps_without_cameras_still_read_and_grow(tmp_path):
