@@ -141,12 +141,12 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     px = pixel_scale(depth_m.shape, bool(config["modeling"].get("scale_pixels", False)))
     flatness = config["modeling"]["picture_flatness"]
     if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
-        noise = config["modeling"]["picture_depth_noise"] or 0.0
-        if noise:  # a noisier sensor's wall is rougher: two of its excess std more
-            noise += 2.0 * excess_noise(config["modeling"].get("depth_noise"))
+        picture_noise = config["modeling"]["picture_depth_noise"] or 0.0
+        if picture_noise:  # a noisier sensor's wall is rougher: two of its excess std more
+            picture_noise += 2.0 * excess_noise(config["modeling"].get("depth_noise"))
         share = config["modeling"]["picture_wall_share"]
         flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, band_px=scaled_px(BAND_PX, px),
-                                      gap_px=scaled_px(GAP_PX, px), noise_per_m2=noise, wall_share=share)
+                                      gap_px=scaled_px(GAP_PX, px), noise_per_m2=picture_noise, wall_share=share)
                          for m in masks])
         points = [mask_point(masks[i], depth_m, intr, T_map_camera) for i in np.flatnonzero(flat)]
         flat_top = np.array([t for t, p in zip(top[flat], points) if p is not None], dtype=int)
@@ -163,10 +163,10 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         src = top[modeled.source]
         modeled = drop_deep_slabs(modeled, deepest_sides(flags.depth_prior[src], ratio,
                                                          None if flags.max_depth is None else flags.max_depth[src]))
-    noise = float(config["modeling"].get("depth_noise") or 0.0)
+    sensor_noise = config["modeling"].get("depth_noise")
     if flags.max_length is not None and len(modeled.source):
         # A 0.21 m "cup" is a mug's mask bled onto the desk behind its rim (tum-fr1-rpy).
-        margin = noise_margin(modeled.boxes.center, T_map_camera, noise)
+        margin = noise_margin(modeled.boxes.center, T_map_camera, sensor_noise)
         modeled = modeled.take(np.flatnonzero(modeled.boxes.size[:, :2].max(axis=1) - margin
                                               <= flags.max_length[top[modeled.source]]))
     min_top = config["modeling"]["floor_min_top"]
@@ -184,13 +184,13 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
                                   (scaled_px(TOP_BAND_PX[0], px), scaled_px(TOP_BAND_PX[1], px)))
         scores = relabel_low_tops(scores, modeled.source, heights, seen, flags)
     if flags.max_height is not None and np.isfinite(flags.max_height).any() and len(modeled.source):
-        heights = modeled.boxes.size[:, 2] - noise_margin(modeled.boxes.center, T_map_camera, noise)
+        heights = modeled.boxes.size[:, 2] - noise_margin(modeled.boxes.center, T_map_camera, sensor_noise)
         scores = relabel_too_tall(scores, modeled.source, heights, flags.max_height, flags.taller_is)
     longer = modeled.boxes.size[:, :2].max(axis=1) if len(modeled.source) else np.zeros(0)
     if flags.max_width is not None and np.isfinite(flags.max_width).any() and len(modeled.source):
         # A box is seen narrower than its object (a part of it), never wider: a 0.56 m wide
         # "laptop" is no laptop (tum-fr1-rpy's fourth monitor, only its top edge in view).
-        widths = longer - noise_margin(modeled.boxes.center, T_map_camera, noise)
+        widths = longer - noise_margin(modeled.boxes.center, T_map_camera, sensor_noise)
         scores = relabel_too_tall(scores, modeled.source, widths, flags.max_width, flags.wider_is)
     if flags.min_width is not None and (flags.min_width > 0).any() and len(modeled.source):
         scores = relabel_too_narrow(scores, modeled.source, longer, modeled.defined, flags.min_width,
@@ -362,7 +362,7 @@ def excess_noise(sigma_per_m2: float | None) -> float:
     return max(0.0, float(sigma_per_m2 or 0.0) - BOUNDS_SENSOR_NOISE)
 
 
-def noise_margin(centers_xyz: np.ndarray, T_map_camera: np.ndarray, sigma_per_m2: float) -> np.ndarray:
+def noise_margin(centers_xyz: np.ndarray, T_map_camera: np.ndarray, sigma_per_m2: float | None) -> np.ndarray:
     """(M,) how much longer than its object a box centred at ``centers_xyz`` (M, 3, map frame) may
     be measured with a sensor noisier than the bounds' (:data:`BOUNDS_SENSOR_NOISE`): two of the
     excess standard deviation, ``2 (sigma_per_m2 - 0.005) Z^2``, at the centre's depth Z in the
