@@ -8,18 +8,21 @@ Each colour image is resized (area or bilinear), each depth image by nearest nei
 temporary TUM folder, and the README's fr1 intrinsics are scaled with them. ``--depth-noise K``
 adds a stereo camera's error to every reading: a smooth random field (correlated over about 4 px
 of a 640 x 480 image, a new draw per frame) of standard deviation K * Z^2 metres (a RealSense D435
-is about 0.01: 1 cm at 1 m, 4 cm at 2 m); ``--tell-noise`` sets ``modeling.depth_noise`` to it as
-well, as a user of that sensor would. The shared fp32 model detects each frame once per
+is about 0.01: 1 cm at 1 m, 4 cm at 2 m). ltc measures the error on the frames by default
+(``modeling.depth_noise: auto``; each variant prints what it measured); ``--tell-noise`` sets
+``modeling.depth_noise`` to the K added instead, and ``--set modeling.depth_noise=0.0019`` to a
+Kinect's, which is what ltc allowed for before it measured. The shared fp32 model detects each frame once per
 variant (tests/replay.py Replay); both settings map its detections (at 640 x 480 and smaller they
 are the same, so one is mapped). Needs ../shared; prints what it measured.
 
     python benchmarks/bench_sizes.py [--sizes 0.5,1.5,2] [--depth-noise 0,0.01 [--tell-noise]]
-                                     [--model ../shared/models/yolov8n-seg_fp32.onnx]
+                                     [--set key=value]... [--model ../shared/models/yolov8n-seg_fp32.onnx]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -107,6 +110,7 @@ def main():
     ap.add_argument("--depth-noise", default="0", help="K of a stereo error of std K * Z^2 m, comma-separated")
     ap.add_argument("--tell-noise", action="store_true",
                     help="also tell ltc the added error (modeling.depth_noise = K), as a user of that sensor would")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a setting for every pass")
     ap.add_argument("--model", default=str(SHARED / "models" / "yolov8n-seg_fp32.onnx"))
     args = ap.parse_args()
     src = SHARED / "data" / NAME
@@ -127,18 +131,21 @@ def main():
             for label, sets in list(settings.items())[: 2 if scale > 1 else 1]:
                 told = [f"modeling.depth_noise={noise:g}"] if args.tell_noise and noise > 0 else []
                 cfg = load_config(None, ["detector.name=replay-yolo", f"detector.options.model={args.model}", *sets,
-                                         *told])
+                                         *args.set, *told])
                 held, lines = 0, []
                 for part, path in zip(PASSES, (folder, folder.parent / f"{folder.name}-even",
                                                folder.parent / f"{folder.name}-odd")):
                     m = Path(tmp) / f"{folder.name}-{part[:3]}-{label[:6]}.h5"
                     ingest([path], m, cfg, reader="tum", reader_options={"intrinsics": intr})
                     counts, _ = census(m)
-                    res = check(load_map(m), TUM_FR1_RPY)
+                    smap = load_map(m)
+                    res = check(smap, TUM_FR1_RPY)
+                    measured = [c.get("depth_noise") for c in json.loads(smap.sessions[-1]["cameras"])]
                     held += sum(ok for _, ok, _ in res)
                     wrong = "; ".join(f"{lm.name}: {where}" for lm, ok, where in res if not ok)
                     lines.append(f"    {part}: {sum(counts.values())} objects ({verdict(NAME, counts)}); chairs "
-                                 f"{chairs(m)}; places {sum(ok for _, ok, _ in res)} of {len(res)}"
+                                 f"{chairs(m)}; places {sum(ok for _, ok, _ in res)} of {len(res)}; depth "
+                                 f"noise measured {', '.join('none' if k is None else f'{k:.4f}' for k in measured)}"
                                  + (f" ({wrong})" if wrong else ""))
                 print(f"  pixel settings {label}: places held {held} of {len(PASSES) * len(TUM_FR1_RPY)}")
                 print("\n".join(lines))

@@ -258,8 +258,9 @@ def info(map_path, fmt):
 def _camera_text(c: dict) -> str:
     """A session's camera (ingest's camera_record) as one line of ``ltc info``."""
     named = f"  (calibration: {c['camera']})" if c.get("camera") else ""
+    noise = f", depth noise {c['depth_noise']:.2g} m at 1 m (measured)" if c.get("depth_noise") is not None else ""
     return (f"{c['width']} x {c['height']}, fx {c['fx']:g} fy {c['fy']:g} cx {c['cx']:g} cy {c['cy']:g}"
-            + named)
+            + noise + named)
 
 
 @cli.command("plugins")

@@ -38,7 +38,7 @@ class ModelingSettings(TypedDict):
     class_depth: dict[str, float]
     taller_than: dict[str, dict]
     wider_than: dict[str, dict]
-    depth_noise: Optional[float]
+    depth_noise: Union[float, str, None]  # a number, None or "auto"
     narrower_than: dict[str, dict]
     higher_than: dict[str, dict]
     top_under: dict[str, dict]

@@ -251,7 +251,7 @@ def test_tum_fr1_rpy_up_is_the_desk_normal():
 
     rec = open_recording(tum)
     assert rec.up == "estimate"
-    R_up, floor_z = frame_setup_for(rec)
+    R_up, floor_z, _ = frame_setup_for(rec)
     up = R_up[2]  # the recording's direction the map made +z
     assert angle_deg(up, [0, 0, 1]) < 5.0
     assert angle_deg(cameras_up(np.array([rec.frames[i].load().T_world_camera for i in (0, 100, 200)])),
@@ -321,7 +321,8 @@ def test_tum_fr1_rpy_read_backwards_gets_the_same_map_frame():
     forward = open_recording(tum)
     backward = open_recording(tum)
     backward.frames = backward.frames[::-1]
-    R_f, floor_f = frame_setup_for(forward)
-    R_b, floor_b = frame_setup_for(backward)
+    R_f, floor_f, noise_f = frame_setup_for(forward)
+    R_b, floor_b, noise_b = frame_setup_for(backward)
     np.testing.assert_allclose(R_b, R_f, atol=1e-12)
     assert floor_b == pytest.approx(floor_f, abs=1e-12)
+    assert noise_f is not None and noise_b == noise_f  # the sensor is measured on the same frames

@@ -41,13 +41,19 @@ def test_info_shows_each_sessions_camera(tmp_path):
     out = run("info", m).output
     line = f"camera {cam['width']} x {cam['height']}, fx {cam['fx']:g} fy {cam['fy']:g} cx {cam['cx']:g} cy {cam['cy']:g}"
     assert line == "camera 320 x 240, fx 262.5 fy 262.5 cx 159.5 cy 119.5"
-    assert [ln.strip() for ln in out.splitlines() if ln.strip().startswith("camera ")] == [line]  # no name
     doc = json.loads(run("info", m, "--format", "json").output)
-    assert doc["sessions"][0]["cameras"] == [cam]
+    [recorded] = doc["sessions"][0]["cameras"]
+    # The depth error measured on the frames (the simulated sensor's is 0.005 Z^2, smooth over
+    # 8 x 8 pixel blocks, which a 32 pixel patch's plane partly absorbs).
+    noise = recorded.pop("depth_noise")
+    assert 0.0035 < noise < 0.0055
+    assert recorded == cam
+    shown = [ln.strip() for ln in out.splitlines() if ln.strip().startswith("camera ")]
+    assert shown == [f"{line}, depth noise {noise:.2g} m at 1 m (measured)"]  # and no calibration name
     out = tmp_path / "map.json"  # the JSON export carries it too, and its schema holds
     assert run("export", m, "--format", "json", "-o", out).exit_code == 0
     exported = json.loads(out.read_text())
-    assert exported["map"]["sessions"][0]["cameras"] == [cam]
+    assert exported["map"]["sessions"][0]["cameras"] == [cam | {"depth_noise": noise}]
     schema = json.loads((Path(__file__).resolve().parent.parent / "schemas" / "export.schema.json").read_text())
     jsonschema.validate(exported, schema)
 

@@ -99,7 +99,8 @@ class Cluster:
         class list is ``classes``."""
         rec = setup.recording
         job = RecordingJob(str(rec.path), plan.reader, plan.reader_options, rec.identity, plan.settings,
-                           tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range))
+                           tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range),
+                           setup.depth_noise)
         return RemoteAhead(rec.frames, keys, done, job, self.executor, 2 * self.batch * self.threads(), self.batch,
                            should_stop)
 

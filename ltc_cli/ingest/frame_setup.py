@@ -23,12 +23,13 @@ steeply upwards, which hand-held and robot cameras do not.
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from ltc_cli.errors import RecordingError
 from ltc_cli.geometry.camera import backproject, rotation_between, transform
+from ltc_cli.geometry.depth_noise import estimate_depth_noise
 from ltc_cli.ingest.sampling import sample_frames_of
 from ltc_cli.types import Recording
 
@@ -62,6 +63,8 @@ REFINE_PASSES = 2
 # floor's height alone needs few).
 UP_SAMPLE_FRAMES = 24
 SAMPLE_FRAMES = 6  # even: exactly this many positions (sampling.sample_positions)
+# The depth error is measured on at most this many of the sampled frames (about 15 ms each at 640).
+NOISE_FRAMES = 6
 # Depth readings outside this range are mostly noise (too near) or too sparse to hold a plane.
 DEPTH_RANGE_M = (0.2, 6.0)
 
@@ -332,12 +335,21 @@ def estimate_floor_z(points_z: np.ndarray, band: float = 0.05, min_share: float 
     return float(np.median(z[near]))
 
 
-def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None):
-    """(R_up (3, 3), floor_z or None) of a recording.
+class FrameSetup(NamedTuple):
+    """What a recording's sampled frames tell before its ingest."""
+
+    R_up: np.ndarray  # (3, 3): turns the recording's world into the z-up map frame
+    floor_z: float | None  # the floor's height in the map frame; None when no floor is in view
+    depth_noise: float | None  # the sensor's depth error std at 1 m, measured; None when not
+
+
+def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None) -> FrameSetup:
+    """The up rotation, floor height and depth error of a recording (:class:`FrameSetup`).
 
     R_up turns the recording's world into the z-up map frame (given, or estimated from the
     cameras and the floor when ``up: estimate``); floor_z is the floor's height in the map frame,
-    from the depth of a few frames (None when no floor is in view). ``warn(message)`` is told when
+    from the depth of a few frames (None when no floor is in view); depth_noise is measured on the
+    same frames (ltc_cli/geometry/depth_noise.py). ``warn(message)`` is told when
     an estimate found no horizontal plane and rests on the cameras alone (a map tilted by the
     cameras' mean pitch is then likely).
     """
@@ -368,4 +380,7 @@ def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None)
         pts = backproject(u[ok], v[ok], z[ok], f.intrinsics)
         zs.append(transform(f.T_world_camera, pts) @ R_up[2])
     floor_z = estimate_floor_z(np.concatenate(zs)) if zs else None
-    return R_up, floor_z
+    # Evenly over the sampled frames (key order, so the same whichever way the reader lists them).
+    step = max(1, -(-len(frames) // NOISE_FRAMES))
+    depth_noise, _ = estimate_depth_noise([f.depth_m for f in frames[::step]])
+    return FrameSetup(R_up, floor_z, depth_noise)

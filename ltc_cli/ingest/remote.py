@@ -74,6 +74,7 @@ class RecordingJob:
     T_up: np.ndarray
     floor_z: float | None
     depth_range: tuple
+    depth_noise: float | None = None  # measured on the recording (modeling.depth_noise: auto)
 
     def cache_key(self) -> tuple:
         det = self.settings["detector"]
@@ -172,7 +173,8 @@ class FrameTask:
         masks, vectors = in_map_classes(dets, opened.classes)
         t2 = time.perf_counter()
         stage1 = model_frame(masks, vectors, frame.depth_m, job.T_up @ frame.T_world_camera, frame.intrinsics,
-                             job.depth_range, job.settings, opened.flags, job.floor_z)
+                             job.depth_range, job.settings, opened.flags, job.floor_z,
+                             job.depth_noise)
         stage1.seconds = time.perf_counter() - t2
         step = int(job.settings["maintenance"]["ray_step"])
         return RemoteFrame(ref.key, frame.T_world_camera, frame.intrinsics, frame.depth_m.shape,

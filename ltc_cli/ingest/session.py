@@ -106,6 +106,7 @@ class RecordingSetup:
     R_up: np.ndarray  # (3, 3): rotates the recording's world so that z is up
     floor_z: float | None  # in the z-up frame; None when not estimated
     depth_range: tuple[float, float]  # the recording's, within the settings' modeling range
+    depth_noise: float | None = None  # the sensor's depth error std at 1 m, measured (frame_setup)
 
     @property
     def T_up(self) -> np.ndarray:
@@ -207,10 +208,10 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
     m_cfg = settings["modeling"]
     setups = []
     for rec, det in zip(recordings, detectors):
-        R_up, floor_z = frame_setup_for(rec, warn=warn)
+        R_up, floor_z, depth_noise = frame_setup_for(rec, warn=warn)
         lo, hi = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
         depth_range = (max(lo, m_cfg["min_depth"]), min(hi, m_cfg["max_depth"]))
-        setups.append(RecordingSetup(rec, det, R_up, floor_z, depth_range))
+        setups.append(RecordingSetup(rec, det, R_up, floor_z, depth_range, depth_noise))
     return Plan(settings, calibration, setups, metric, policy, revisit)
 
 
@@ -218,15 +219,16 @@ def _visit_of(row: dict) -> int:
     return max(1, int(row.get("visit") or 0))  # rows written before --revisit hold 0: a first visit
 
 
-def camera_record(rec: Recording) -> dict:
+def camera_record(rec: Recording, depth_noise: float | None = None) -> dict:
     """The camera a recording was read with, for its session row: the image size and pinhole
-    parameters, and the reader's name for the calibration when it chose one (tum: fr1-fr3, or
-    ros when the folder's name tells no sensor)."""
+    parameters, the reader's name for the calibration when it chose one (tum: fr1-fr3, or
+    ros when the folder's name tells no sensor), and the depth error measured on its frames."""
     intr = rec.intrinsics
     row = {"width": int(intr.width), "height": int(intr.height),
            **{k: round(float(getattr(intr, k)), 6) for k in ("fx", "fy", "cx", "cy")}}
     named = (rec.meta or {}).get("camera")  # recording.yaml's camera section is no name
-    return row | ({"camera": named} if isinstance(named, str) and named else {})
+    row |= {"camera": named} if isinstance(named, str) and named else {}
+    return row | ({"depth_noise": round(float(depth_noise), 5)} if depth_noise is not None else {})
 
 
 def _session_row(smap: SemanticMap, plan: Plan) -> tuple[int, dict]:
@@ -260,7 +262,7 @@ def _session_row(smap: SemanticMap, plan: Plan) -> tuple[int, dict]:
         "frames_done": 0, "frames_skipped": 0, "visit": visit,
         "up_rotation": json.dumps([np.asarray(s.R_up).round(9).tolist() for s in plan.setups]),
         "floor_z": json.dumps([None if s.floor_z is None else round(float(s.floor_z), 6) for s in plan.setups]),
-        "cameras": json.dumps([camera_record(r) for r in recordings]),
+        "cameras": json.dumps([camera_record(s.recording, s.depth_noise) for s in plan.setups]),
     }
     smap.sessions.append(row)
     return len(smap.sessions) - 1, row
@@ -346,7 +348,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 res = mapper.process_frame(
                     ref.index, key, masks, vectors,
                     frame.depth_m, T_up @ frame.T_world_camera, frame.intrinsics, setup.depth_range,
-                    floor_z=setup.floor_z, stage1=stage1,
+                    floor_z=setup.floor_z, stage1=stage1, depth_noise=setup.depth_noise,
                 )
                 stage["modeling"] += stage1.seconds if stage1 is not None else 0.0
                 for k, v in res.timings.items():

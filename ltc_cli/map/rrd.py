@@ -130,7 +130,7 @@ def recording_to_map(smap: SemanticMap, recording) -> np.ndarray:
     else:
         from ltc_cli.ingest.frame_setup import frame_setup_for
 
-        R = frame_setup_for(recording)[0]
+        R = frame_setup_for(recording).R_up
     T = np.eye(4)
     T[:3, :3] = R
     return T

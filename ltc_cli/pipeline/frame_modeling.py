@@ -125,12 +125,14 @@ def in_map_classes(detections, class_mapper) -> tuple[list[np.ndarray], list[np.
 
 def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.ndarray, T_map_camera: np.ndarray,
                 intr: Intrinsics, depth_range: tuple[float, float], config: dict, flags: ClassFlags,
-                floor_z: float | None = None) -> FrameModel:
+                floor_z: float | None = None, measured_noise: float | None = None) -> FrameModel:
     """Stage 1 of one frame: drop moving classes, then model the rest (see :func:`model_detections`).
 
     masks: list of (H, W) bool; scores: list of (C+1,) class vectors over the map's classes;
-    T_map_camera: (4, 4) camera-to-map pose (up rotation already applied).
+    T_map_camera: (4, 4) camera-to-map pose (up rotation already applied); measured_noise: the
+    depth error measured on the recording (for ``modeling.depth_noise: auto``).
     """
+    sensor_noise = sensor_depth_noise(config["modeling"].get("depth_noise"), measured_noise)
     detections = len(masks)
     top = np.array([int(top_class(v)) for v in scores], dtype=int)
     if flags.moving[top].any():  # people and animals are never map objects
@@ -143,7 +145,7 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
     if flatness is not None and masks:  # posters and paintings flat on a wall are not objects
         picture_noise = config["modeling"]["picture_depth_noise"] or 0.0
         if picture_noise:  # a noisier sensor's wall is rougher: two of its excess std more
-            picture_noise += 2.0 * excess_noise(config["modeling"].get("depth_noise"))
+            picture_noise += 2.0 * excess_noise(sensor_noise)
         share = config["modeling"]["picture_wall_share"]
         flat = np.array([flat_on_wall(m, depth_m, intr, T_map_camera, flatness, band_px=scaled_px(BAND_PX, px),
                                       gap_px=scaled_px(GAP_PX, px), noise_per_m2=picture_noise, wall_share=share)
@@ -163,7 +165,6 @@ def model_frame(masks: list[np.ndarray], scores: list[np.ndarray], depth_m: np.n
         src = top[modeled.source]
         modeled = drop_deep_slabs(modeled, deepest_sides(flags.depth_prior[src], ratio,
                                                          None if flags.max_depth is None else flags.max_depth[src]))
-    sensor_noise = config["modeling"].get("depth_noise")
     if flags.max_length is not None and len(modeled.source):
         # A 0.21 m "cup" is a mug's mask bled onto the desk behind its rim (tum-fr1-rpy).
         margin = noise_margin(modeled.boxes.center, T_map_camera, sensor_noise)
@@ -354,6 +355,13 @@ def most_confident(dets: list, k: int) -> list:
 #: (a Kinect v1, about 0.0019 Z^2, Khoshelham and Elberink 2012) and checked on the simulator,
 #: whose sensor errs by 0.005 Z^2 (told that, with 0.0019 here, 48 houses gained 5 false positives).
 BOUNDS_SENSOR_NOISE = 0.005
+
+
+def sensor_depth_noise(setting, measured: float | None) -> float | None:
+    """The depth error (std at 1 m) stage 1 allows for: ``modeling.depth_noise`` when it is a number
+    (or null), the error measured on the recording's frames when it is ``auto`` (None, as null,
+    when nothing could be measured)."""
+    return measured if setting == "auto" else setting
 
 
 def excess_noise(sigma_per_m2: float | None) -> float:

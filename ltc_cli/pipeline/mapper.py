@@ -110,6 +110,7 @@ class Mapper(DetectionAssociation, InstanceMerging, BoxIntegration, SessionPruni
         clock=None,
         floor_z: float | None = None,
         stage1: FrameModel | None = None,
+        depth_noise: float | None = None,
     ) -> FrameResult:
         """Model, associate, integrate and maintain one frame.
 
@@ -119,6 +120,8 @@ class Mapper(DetectionAssociation, InstanceMerging, BoxIntegration, SessionPruni
         stage1: the frame's stage 1 made elsewhere (a Dask worker, by :func:`model_frame` from the
         same inputs); then masks and scores are not used, and depth_m is read only where stage 4
         and free-space carving read it (see ltc_cli/ingest/remote.py).
+        depth_noise: the sensor's depth error std at 1 m measured on the recording, which
+        ``modeling.depth_noise: auto`` uses.
         """
         clock = clock or time.perf_counter
         self._moves.clear()
@@ -129,7 +132,7 @@ class Mapper(DetectionAssociation, InstanceMerging, BoxIntegration, SessionPruni
         t0 = clock()
         if stage1 is None:
             stage1 = model_frame(masks, scores, depth_m, T_map_camera, intr, depth_range, self.cfg, self.flags,
-                                 floor_z)
+                                 floor_z, depth_noise)
         res = FrameResult(detections=stage1.detections)
         if len(stage1.flat_xyz) and self.cfg["modeling"]["picture_object_share"] is not None:
             res.removed += self._pictures(stage1, T_map_camera, T_camera_map, intr, depth_range[1], frame_index,
