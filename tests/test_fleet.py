@@ -86,6 +86,22 @@ def test_any_batch_size_makes_the_same_map(laps, tmp_path, cluster, batch):
     assert_same_map(ref, m)
 
 
+def test_workers_model_with_the_depth_error_the_writer_measured(laps, tmp_path, cluster, monkeypatch):
+    import ltc_cli.ingest.frame_setup as frame_setup
+    import ltc_cli.ingest.remote as remote
+
+    monkeypatch.setattr(frame_setup, "estimate_depth_noise", lambda images: (0.0321, 99))
+    seen, real = [], remote.model_frame
+
+    def spy(*args):
+        seen.append(args[9])  # measured_noise (the workers are threads of this process)
+        return real(*args)
+
+    monkeypatch.setattr(remote, "model_frame", spy)
+    ingest([laps[0]], tmp_path / "m.h5", defaults(), cluster=cluster)
+    assert len(seen) == 20 and set(seen) == {0.0321}
+
+
 def test_stop_part_way_then_resume_on_dask_gives_the_same_map(laps, tmp_path, cluster):
     ref, m = tmp_path / "ref.h5", tmp_path / "m.h5"
     ingest([laps[0]], ref, defaults())
