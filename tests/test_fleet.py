@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import ltc_cli.ingest.frame_setup as frame_setup
+import ltc_cli.ingest.remote as remote
 import ltc_cli.recordings.writer as rec_writer
 import ltc_cli.tools.simulate as sim
 from ltc_cli import plugins
@@ -87,9 +89,6 @@ def test_any_batch_size_makes_the_same_map(laps, tmp_path, cluster, batch):
 
 
 def test_workers_model_with_the_depth_error_the_writer_measured(laps, tmp_path, cluster, monkeypatch):
-    import ltc_cli.ingest.frame_setup as frame_setup
-    import ltc_cli.ingest.remote as remote
-
     monkeypatch.setattr(frame_setup, "estimate_depth_noise", lambda images: (0.0321, 99))
     seen, real = [], remote.model_frame
 
