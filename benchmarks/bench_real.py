@@ -28,6 +28,7 @@ deterministic), so they cost only the mapping. Needs ../shared; prints what it m
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import shutil
@@ -325,6 +326,9 @@ def main():
             classes = sorted(set(first) | set(second) | set(rev) | set(TRUTH.get(name, {})))
             print(f"\n{name}: {s.frames_done} frames, {s.frames_done / wall:.1f} frames/s "
                   f"({1000 * cpu / max(s.frames_done, 1):.0f} ms CPU per frame, detection included, one thread)")
+            measured = [c.get("depth_noise") for c in json.loads(load_map(m).sessions[0].get("cameras") or "[]")]
+            print("  depth error measured on its frames (modeling.depth_noise: auto): "
+                  + ", ".join("none" if k is None else f"{k:.4f} m at 1 m" for k in measured))
             print(f"  {'class':<14}{'truth':>8}{'session 1':>11}{'revisit':>9}{'reversed':>10}")
             for c in classes:
                 lo, hi = TRUTH.get(name, {}).get(c, (0, 0))
