@@ -12,10 +12,10 @@ Indoors a fair share of every view is flat (floor, walls, desk and table tops, d
 low quantile ``QUANTILE`` of the patches' residuals is the flat patches' value, whatever the rest
 holds. A stereo sensor's error is smooth over its matching window (several pixels), which a small
 patch's plane absorbs; patches a tenth of the image wide hold enough windows to show it.
-Measured (docs/decisions.md, "A sensor's depth error, measured"): tum-fr1-rpy (a Kinect v1)
-0.0026; tum-fr1-rpy with a smooth error of 0.005 / 0.01 / 0.02 Z^2 added 0.0055 / 0.0099 / 0.0188
-(the two errors together: 0.0054 / 0.0102 / 0.0201); the simulator's sensor (0.005, quantised
-in disparity) 0.0047-0.0048.
+Measured on the six frames an ingest samples (docs/decisions.md, "A sensor's depth error,
+measured"): tum-fr1-rpy (a Kinect v1) 0.0027; tum-fr1-rpy with a smooth error of 0.01 / 0.02 /
+0.03 Z^2 added 0.0097 / 0.0184 / 0.0270 (the two errors together: 0.0102 / 0.0201 / 0.0301); the
+simulator's sensor (0.005, quantised in disparity) 0.0047-0.0048.
 """
 
 from __future__ import annotations
@@ -32,7 +32,8 @@ MIN_PATCH_PX = 8
 MIN_VALID_SHARE = 0.9
 DEPTH_RANGE_M = (0.3, 6.0)
 # The share of patches taken as flat. On tum-fr1-rpy, a cluttered desk seen from 1 m, the 0.3
-# quantile already holds edges (0.0054 with 0.005 added); 0.1 is no steadier.
+# quantile already holds edges (0.0072 with 0.005 added, 0.0055 at 0.2); 0.1 measures 8-12 % under
+# the errors added.
 QUANTILE = 0.2
 # Fewer flat-enough patches than this over the sampled frames measure nothing.
 MIN_PATCHES = 24
