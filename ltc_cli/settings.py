@@ -110,6 +110,7 @@ class IntegrationSettings(TypedDict):
     free_space_tolerance: float
     free_space_max_share: float
     erosion: float
+    round_footprint: list[str]
     max_weight: Optional[float]
     unassigned_score: str
     relabel_weight: str

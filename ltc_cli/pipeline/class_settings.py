@@ -14,7 +14,8 @@ class ClassSettings:
     container_width: (C+1,) ``association.container_max_width`` (inf: any); outgrow: C+1 entries of
     ``integration.partial_outgrow`` (None: never); fixture: (C+1,) bool ``maintenance.fixture_classes``;
     whole_width: (C+1,) ``modeling.defined_min_width`` (0: any); max_union: (C+1,)
-    ``association.max_union_length`` (inf: any); no_adjoin: (C+1,) bool ``association.adjoin_except``."""
+    ``association.max_union_length`` (inf: any); no_adjoin: (C+1,) bool ``association.adjoin_except``;
+    round_footprint: (C+1,) bool ``integration.round_footprint``."""
 
     adjoin_share: np.ndarray
     container_width: np.ndarray
@@ -23,6 +24,7 @@ class ClassSettings:
     whole_width: np.ndarray
     max_union: np.ndarray
     no_adjoin: np.ndarray
+    round_footprint: np.ndarray
 
     @classmethod
     def from_settings(cls, classes: list[str], config: dict) -> "ClassSettings":
@@ -33,10 +35,12 @@ class ClassSettings:
         wholes = config["modeling"].get("defined_min_width") or {}
         unions = config["association"]["max_union_length"] or {}
         no_adjoin = set(config["association"]["adjoin_except"] or [])
+        rounds = set(config["integration"].get("round_footprint") or [])
         return cls(np.array([float(shares.get(c, 0.0)) for c in classes] + [0.0]),
                    np.array([float(widths.get(c, np.inf)) for c in classes] + [np.inf]),
                    [outgrow.get(c) for c in classes] + [None],
                    np.array([c in fixtures for c in classes] + [False]),
                    np.array([float(wholes.get(c, 0.0)) for c in classes] + [0.0]),
                    np.array([float(unions.get(c, np.inf)) for c in classes] + [np.inf]),
-                   np.array([c in no_adjoin for c in classes] + [False]))
+                   np.array([c in no_adjoin for c in classes] + [False]),
+                   np.array([c in rounds for c in classes] + [False]))

@@ -40,7 +40,8 @@ class BoxIntegration:
         else:
             w_obj = stale_weight(self._weight(row), t.last_session[row] < self.session, i_cfg["stale_box_weight"])
             new = integrate_box(det_box, obj, 1.0, w_obj, i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
-                                part_volume=i_cfg["defined_part_volume"])
+                                part_volume=i_cfg["defined_part_volume"],
+                                round_footprint=bool(self.per_class.round_footprint[top_class(t.scores[row])]))
             if int(top_class(s_det)) == int(top_class(t.scores[row])):
                 new = self._outgrown(det_box, obj, 1.0, w_obj, int(top_class(s_det)), (row,), new)
         t.set_box(row, new)

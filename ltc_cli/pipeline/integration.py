@@ -92,6 +92,39 @@ def enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, snap: f
     return Box(center, float(yaw), size, visible, bool(defined_flags(visible)))
 
 
+def round_enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, snap: float = 0.1) -> Box:
+    """Both partial, for a thing with no footprint direction (an office chair's five-star base):
+    the object's box grown along its own axes to cover the ellipse inscribed in the detection's
+    footprint, eroded by ``erosion`` per side. A view's box of a round thing is turned anywhere;
+    the enclosing rectangle of the corners of two boxes of side D turned 45 degrees apart is
+    D sqrt(2) on a side, while the thing is D across. A view aligned with the box encloses as in
+    :func:`enclosing_box` (the inscribed ellipse reaches the box's sides along its axes)."""
+    phi = det.yaw - obj.yaw
+    a, b = det.size[0] / 2, det.size[1] / 2
+    reach = np.array([np.hypot(a * np.cos(phi), b * np.sin(phi)), np.hypot(a * np.sin(phi), b * np.cos(phi))])
+    d = _in_frame_of(obj, det.center[None, :])[0]
+    half = obj.size / 2
+    lo = np.minimum(-half[:2], d[:2] - reach)
+    hi = np.maximum(half[:2], d[:2] + reach)
+    z_det = (det.center[2] - det.size[2] / 2, det.center[2] + det.size[2] / 2)
+    z_obj = (obj.center[2] - obj.size[2] / 2, obj.center[2] + obj.size[2] / 2)
+    zmin, zmax = min(z_det[0], z_obj[0]), max(z_det[1], z_obj[1])
+    size = np.array([hi[0] - lo[0], hi[1] - lo[1], zmax - zmin]) - 2 * erosion
+    size = np.maximum(size, np.maximum(obj.size, np.array([2 * reach[0], 2 * reach[1], det.size[2]])))
+    size = np.maximum(size, min_extent)
+    mid = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2])
+    center_xy = obj.center[:2] + rot_z(obj.yaw)[:2, :2] @ mid
+    center = np.array([center_xy[0], center_xy[1], (zmin + zmax) / 2])
+    corners = box_corners(center, obj.yaw, size)
+    seen = np.concatenate([box_corners(det.center, det.yaw, det.size)[det.visible],
+                           box_corners(obj.center, obj.yaw, obj.size)[obj.visible]])
+    if len(seen):
+        visible = (np.linalg.norm(corners[:, None, :] - seen[None, :, :], axis=-1) <= snap).any(axis=1)
+    else:
+        visible = np.zeros(8, dtype=bool)
+    return Box(center, float(obj.yaw), size, visible, bool(defined_flags(visible)))
+
+
 def _in_frame_of(whole: Box, points_xyz: np.ndarray) -> np.ndarray:
     """points_xyz (N, 3) in the frame of ``whole`` (origin its centre, x along its yaw)."""
     return (points_xyz - whole.center) @ rot_z(whole.yaw)  # R_world_box^T applied to each row
@@ -174,7 +207,7 @@ def part_of(det: Box, obj: Box, volume_share: float | None) -> bool:
 
 def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float, min_extent: float,
                   outgrow: float | None = None, max_turn: float | None = None,
-                  part_volume: float | None = None) -> Box:
+                  part_volume: float | None = None, round_footprint: bool = False) -> Box:
     """The four cases of DESIGN.md 1.3 by the Defined flags of detection i and map object j.
 
     ``outgrow`` (metres, None = the paper): in the two mixed cases, a partial box reaching further
@@ -188,6 +221,8 @@ def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float
     a box turned 37 degrees whose corners reach 0.35 m past the couch's back.
     ``part_volume`` (None = the paper): a Defined detection that is a part of the partial object
     (:func:`part_of`) does not replace its box: the two enclose, as two partial views do.
+    ``round_footprint`` (False = the paper): two partial boxes of a thing with no footprint
+    direction enclose by :func:`round_enclosing_box`.
     """
     if det.defined and obj.defined:
         return average_boxes(det, obj, w_det, w_obj)
@@ -201,18 +236,21 @@ def integrate_box(det: Box, obj: Box, w_det: float, w_obj: float, erosion: float
     if det.defined and not part_of(det, obj, part_volume):
         # i Defined, j partial: the complete view replaces the partial estimate
         return Box(det.center.copy(), det.yaw, det.size.copy(), det.visible.copy(), True)
+    if round_footprint:
+        return round_enclosing_box(det, obj, erosion, min_extent)
     return enclosing_box(det, obj, erosion, min_extent)
 
 
 def merge_objects(keep: Box, drop: Box, s_keep: np.ndarray, s_drop: np.ndarray, w_keep: float, w_drop: float,
                   erosion: float, min_extent: float, outgrow: float | None = None,
-                  part_volume: float | None = None) -> tuple[Box, np.ndarray]:
+                  part_volume: float | None = None, round_footprint: bool = False) -> tuple[Box, np.ndarray]:
     """Instance de-duplication: (box, class vector) of two map objects that are one.
 
     The box follows the four cases of :func:`integrate_box` with ``drop`` as the observation; the
     class vectors follow eq. 3 generalised to two map objects: the observation-weighted mean.
     """
-    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent, outgrow, part_volume=part_volume)
+    box = integrate_box(drop, keep, w_drop, w_keep, erosion, min_extent, outgrow, part_volume=part_volume,
+                        round_footprint=round_footprint)
     return box, merged_scores(s_keep, s_drop, w_keep, w_drop)
 
 

@@ -176,7 +176,8 @@ class InstanceMerging:
         w_old, w_new = self._merge_weights(older, newer)
         box, scores = merge_objects(b_old, b_new, t.scores[older], t.scores[newer], w_old, w_new,
                                     i_cfg["erosion"], self.cfg["modeling"]["min_extent"],
-                                    part_volume=i_cfg["defined_part_volume"])
+                                    part_volume=i_cfg["defined_part_volume"],
+                                    round_footprint=bool(self.per_class.round_footprint[top_class(t.scores[older])]))
         if pieces and b_old.defined != b_new.defined and enclosed_part(b_old, b_new):
             # A Defined piece smaller than the partial one beside it is not the whole, whatever its
             # vertices said (a Defined end of a table beside a partial box of the rest): the two
