@@ -82,23 +82,27 @@ def enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, snap: f
     size = np.maximum(size, np.maximum(s_det, s_obj))
     size = np.maximum(size, min_extent)
     center = np.array([cxy[0], cxy[1], (zmin + zmax) / 2])
-    corners = box_corners(center, yaw, size)
-    seen = np.concatenate([c_det[det.visible], c_obj[obj.visible]])
-    if len(seen):
-        d = np.linalg.norm(corners[:, None, :] - seen[None, :, :], axis=-1)
-        visible = (d <= snap).any(axis=1)
-    else:
-        visible = np.zeros(8, dtype=bool)
+    visible = snapped_visible(box_corners(center, yaw, size), np.concatenate([c_det[det.visible], c_obj[obj.visible]]),
+                              snap)
     return Box(center, float(yaw), size, visible, bool(defined_flags(visible)))
+
+
+def snapped_visible(corners: np.ndarray, seen: np.ndarray, snap: float) -> np.ndarray:
+    """(8,) bool: the corners (8, 3) of an enclosing box that lie within ``snap`` metres of a seen
+    (visible) vertex (K, 3) of the boxes it encloses."""
+    if not len(seen):
+        return np.zeros(8, dtype=bool)
+    return (np.linalg.norm(corners[:, None, :] - seen[None, :, :], axis=-1) <= snap).any(axis=1)
 
 
 def round_enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, snap: float = 0.1) -> Box:
     """Both partial, for a thing with no footprint direction (an office chair's five-star base):
     the object's box grown along its own axes to cover the ellipse inscribed in the detection's
     footprint, eroded by ``erosion`` per side. A view's box of a round thing is turned anywhere;
-    the enclosing rectangle of the corners of two boxes of side D turned 45 degrees apart is
-    D sqrt(2) on a side, while the thing is D across. A view aligned with the box encloses as in
-    :func:`enclosing_box` (the inscribed ellipse reaches the box's sides along its axes)."""
+    the smallest rectangle around the corners of two squares of side D turned 45 degrees apart is
+    1.31 D on a side (their regular octagon across its flats), while the thing is D across. A view
+    aligned with the box encloses as in :func:`enclosing_box` (the inscribed ellipse reaches the
+    box's sides along its axes)."""
     phi = det.yaw - obj.yaw
     a, b = det.size[0] / 2, det.size[1] / 2
     reach = np.array([np.hypot(a * np.cos(phi), b * np.sin(phi)), np.hypot(a * np.sin(phi), b * np.cos(phi))])
@@ -115,13 +119,9 @@ def round_enclosing_box(det: Box, obj: Box, erosion: float, min_extent: float, s
     mid = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2])
     center_xy = obj.center[:2] + rot_z(obj.yaw)[:2, :2] @ mid
     center = np.array([center_xy[0], center_xy[1], (zmin + zmax) / 2])
-    corners = box_corners(center, obj.yaw, size)
     seen = np.concatenate([box_corners(det.center, det.yaw, det.size)[det.visible],
                            box_corners(obj.center, obj.yaw, obj.size)[obj.visible]])
-    if len(seen):
-        visible = (np.linalg.norm(corners[:, None, :] - seen[None, :, :], axis=-1) <= snap).any(axis=1)
-    else:
-        visible = np.zeros(8, dtype=bool)
+    visible = snapped_visible(box_corners(center, obj.yaw, size), seen, snap)
     return Box(center, float(obj.yaw), size, visible, bool(defined_flags(visible)))
 
 
