@@ -183,3 +183,20 @@ def test_tum_fr1_rpy_measures_as_a_kinect_and_with_a_stereo_error_added():
         noisy.append(np.where(z > 0, z + field / field.std() * 0.01 * z * z, 0.0))
     k, _ = estimate_depth_noise(noisy)
     assert k == pytest.approx(np.hypot(k0, 0.01), rel=0.1)
+
+
+def test_a_noisy_sensor_is_told_once_per_recording(tmp_path, monkeypatch):
+    """ltc says when the measure changes what the size rules allow (over 0.005), and only then."""
+    lap1 = Path(__file__).resolve().parent.parent / "sample_data" / "lap1"
+    told = []
+    for measured in (0.0184, 0.0042):
+        monkeypatch.setattr(frame_setup, "estimate_depth_noise", lambda images, k=measured: (k, 99))
+        ingest([lap1], tmp_path / f"m{measured}.h5", defaults(), warn=told.append)
+    assert [w for w in told if "depth error" in w] == [f"{lap1}: the depth error measured on its frames is 0.018 m at 1 m, over the 0.005 the size "
+                    f"rules hold: they allow for it (a number in modeling.depth_noise overrides the measure)"]
+    cfg = defaults()
+    cfg["modeling"]["depth_noise"] = 0.0019  # a number given: the measure is only recorded
+    monkeypatch.setattr(frame_setup, "estimate_depth_noise", lambda images: (0.0184, 99))
+    quiet = []
+    ingest([lap1], tmp_path / "n.h5", cfg, warn=quiet.append)
+    assert not [w for w in quiet if "depth error" in w]

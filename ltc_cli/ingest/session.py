@@ -39,7 +39,8 @@ from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
-from ltc_cli.pipeline.frame_modeling import FrameModel, in_map_classes, most_confident
+from ltc_cli.pipeline.frame_modeling import (BOUNDS_SENSOR_NOISE, FrameModel, excess_noise, in_map_classes,
+                                            most_confident)
 from ltc_cli.pipeline.mapper import Mapper
 from ltc_cli.recordings.open import open_recording
 from ltc_cli.text import SkippedFrames
@@ -209,6 +210,10 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
     setups = []
     for rec, det in zip(recordings, detectors):
         R_up, floor_z, depth_noise = frame_setup_for(rec, warn=warn)
+        if warn is not None and m_cfg["depth_noise"] == "auto" and excess_noise(depth_noise) > 0:
+            warn(f"{rec.path}: the depth error measured on its frames is {depth_noise:.3f} m at 1 m, over the "
+                 f"{BOUNDS_SENSOR_NOISE} the size rules hold: they allow for it (a number in modeling.depth_noise "
+                 f"overrides the measure)")
         lo, hi = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
         depth_range = (max(lo, m_cfg["min_depth"]), min(hi, m_cfg["max_depth"]))
         setups.append(RecordingSetup(rec, det, R_up, floor_z, depth_range, depth_noise))
