@@ -20,7 +20,10 @@ on the ones above say how the map holds on passes it was not tuned on. Its poses
 capture; three more pairs of sessions (``DRIFT_DRAWS``) put a robot localiser's drift on them (the
 realistic simulator's: 4 cm and 1.5 degrees), a draw for each session, as a robot revisiting the
 room would be off in another way each time. Six more give it a weaker detector, which misses 30 %
-or 50 % of the detections (``WEAKER_SHARES``), a draw for each session.
+or 50 % of the detections (``WEAKER_SHARES``), a draw for each session. And its session-1 map, with
+boxes put in of things no longer there and at moved things' old places (tests/real_ghosts.py), is
+revisited in five ways (``GHOST_PASSES``): which of those boxes each revisit removes, and whether it
+keeps every other id.
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -50,6 +53,7 @@ from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
+from tests.real_ghosts import ghost_lines  # noqa: E402
 from tests.real_truth import APART, COUNTS, TUM_FR1_RPY, check, merged_pairs  # noqa: E402
 from tests.replay import Drifted, Reordered, Replay, weaker  # noqa: E402
 
@@ -192,6 +196,10 @@ def apart_line(name: str, maps: list) -> list[str]:
 # over DRIFT_FRAMES frames (2 s at 30 Hz).
 DRIFT_DRAWS = ((1, 2), (3, 4), (5, 6))
 DRIFT_FRAMES = 60.0
+# Revisits of the session-1 map with ghosts put into it (tests/real_ghosts.py), first run in the
+# fifty-second round: (label, [reader of each revisit]).
+GHOST_PASSES = (("revisit", [None]), ("reversed", ["reversed"]), ("the second half", ["second-half"]),
+                ("every third frame, twice", ["every-third", "every-third"]), ("with drift 2", ["drift-2"]))
 # A weaker detector (tests/replay.py weaker): these shares of the detections missed, with the same
 # pairs of draws as the drift (a draw for each session). First run in the fortieth round.
 WEAKER_SHARES = (0.3, 0.5)
@@ -382,6 +390,9 @@ def main():
             for line in landmarks_line(name, passes) + apart_line(name, passes):
                 print(line)
             if name in LANDMARKS:
+                for line in ghost_lines(tmp / f"{name}-s1.h5", tmp, lambda m, r: ingest(
+                        [path], m, load_config(None, sets), reader=r, revisit=True), GHOST_PASSES):
+                    print(line)
                 later = later_passes(name, path, tmp, sets, args.keep)
                 for line in landmarks_line(name, later) + apart_line(name, later):
                     print(line)
