@@ -47,8 +47,12 @@ def history_map() -> SemanticMap:
     11 bed    session 0, removed in session 0                -> nothing (before session 1)
     12 chair  session 0 at (20, 0), removed in session 1     -> removed (too far from 4 to be its move)
     13 cup    created in session 2                           -> added in session 2
+    14 cup    session 0 at (4, 8), removed in session 1  \
+    15 cup    created in session 1 at (4, 8.3)           /   -> moved 0.3 m: 0.1 m boxes apart
+    16 bottle session 0 at (12, 12), removed in session 1 \
+    17 bottle created in session 1 at (12.12, 12)        /   -> the bottle in place: nothing (0.12 m)
     """
-    m = SemanticMap.new(["chair", "table", "cup", "couch", "tv", "bed"])
+    m = SemanticMap.new(["chair", "table", "cup", "couch", "tv", "bed", "bottle"])
     m.sessions = [dict(SESSION) for _ in range(3)]
     size = [0.5, 0.5, 0.9]
     add(m, [1, 1, 0.45], 0.0, size, "chair", 0.8)
@@ -66,7 +70,11 @@ def history_map() -> SemanticMap:
     add(m, [0, 9, 0.4], 0.0, [2, 1.6, 0.5], "bed", 0.7, status=REMOVED, seen=(0, 1, 0, 2))
     add(m, [20, 0, 0.45], 0.0, size, "chair", 0.7, status=REMOVED, seen=(0, 1, 1, 3))
     add(m, [7, 7, 0.8], 0.0, [0.1, 0.1, 0.1], "cup", 0.7, seen=(2, 1, 2, 3))
-    for oid, session in ((2, 1), (3, 1), (6, 1), (11, 0), (12, 1)):
+    add(m, [4, 8, 0.8], 0.0, [0.1, 0.1, 0.1], "cup", 0.7, status=REMOVED, seen=(0, 1, 1, 3))
+    add(m, [4, 8.3, 0.8], 0.0, [0.1, 0.1, 0.1], "cup", 0.7, seen=(1, 4, 1, 9))
+    add(m, [12, 12, 0.8], 0.0, [0.08, 0.08, 0.25], "bottle", 0.7, status=REMOVED, seen=(0, 1, 1, 3))
+    add(m, [12.12, 12, 0.8], 0.0, [0.08, 0.08, 0.25], "bottle", 0.7, seen=(1, 4, 1, 9))
+    for oid, session in ((2, 1), (3, 1), (6, 1), (11, 0), (12, 1), (14, 1), (16, 1)):
         removed_in(m, oid, session)
     m.events.append(Event(1, 2, "lap/1", "merged", 1, 8))
     return m
@@ -80,16 +88,20 @@ def test_rules_on_a_map_built_by_hand():
     m = history_map()
     rep = map_changes(m, since=0)
     assert kinds(rep) == sorted([("removed", 2, None, 1), ("moved", 4, 3, 1), ("added", 5, None, 1),
-                                 ("removed", 12, None, 1), ("added", 13, None, 2)])
-    assert rep.replaced == 1  # the couch, 0.2 m from where it was
-    moved = next(c for c in rep.changes if c.kind == "moved")
+                                 ("removed", 12, None, 1), ("added", 13, None, 2), ("moved", 15, 14, 1)])
+    assert rep.replaced == 2  # the couch, 0.2 m from where it was, its boxes overlapping; the bottle
+    moved = next(c for c in rep.changes if c.kind == "moved" and c.cls == "chair")
     assert moved.distance == pytest.approx(3.0) and moved.from_center[:2] == [0, 0]
+    # The cup's 0.1 m boxes 0.3 m apart share no ground: it moved, though less than MIN_MOVE. The
+    # couch's 2 m boxes 0.2 m apart overlap: in place. Boxes apart by less than MIN_SMALL_MOVE: in place.
+    cup = next(c for c in rep.changes if c.kind == "moved" and c.cls == "cup")
+    assert cup.distance == pytest.approx(0.3)
     # The default compares with the session before the last: only session 2's cup.
     assert kinds(map_changes(m)) == [("added", 13, None, 2)]
     # With a smaller radius the chair is a removal and an addition.
     assert ("removed", 3, None, 1) in kinds(map_changes(m, since=0, move_radius=2.0))
     # Against an empty map everything active was added.
-    assert {c.object_id for c in map_changes(m, since=-1).changes} == {1, 4, 5, 7, 10, 13}
+    assert {c.object_id for c in map_changes(m, since=-1).changes} == {1, 4, 5, 7, 10, 13, 15, 17}
 
 
 def test_cli_formats_and_errors(tmp_path):
@@ -100,15 +112,15 @@ def test_cli_formats_and_errors(tmp_path):
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     assert [(c["change"], c["id"]) for c in doc["changes"]] == [("added", 5), ("removed", 2), ("removed", 12),
-                                                                  ("moved", 4), ("added", 13)]
+                                                                  ("moved", 4), ("moved", 15), ("added", 13)]
     assert doc["changes"][3]["from_id"] == 3 and doc["changes"][3]["distance"] == pytest.approx(3.0)
     r = runner.invoke(cli, ["changes", str(path), "--since", "0", "--format", "csv"])
     rows = list(csv.DictReader(io.StringIO(r.stdout)))
-    assert [row["change"] for row in rows] == ["added", "removed", "removed", "moved", "added"]
+    assert [row["change"] for row in rows] == ["added", "removed", "removed", "moved", "moved", "added"]
     assert rows[3]["from_id"] == "3"
     r = runner.invoke(cli, ["changes", str(path), "--since", "0"])
     assert r.exit_code == 0 and r.stdout.splitlines()[0].split()[:4] == ["change", "class", "id", "session"]
-    assert "2 added, 2 removed, 1 moved; 1 object re-identified in place" in r.stderr
+    assert "2 added, 2 removed, 2 moved; 2 objects re-identified in place" in r.stderr
     r = runner.invoke(cli, ["changes", str(path), "--since", "7"])
     assert r.exit_code == 1 and r.stderr.strip() == f"Error: {path}: session 7 is not in this map (sessions 0..2; -1 compares with an empty map)"
 
@@ -165,7 +177,7 @@ def test_render_marks_the_changes(tmp_path):
     m = history_map()
     rep = map_changes(m, since=0)
     res = render_map(m, tmp_path / "c.png", width=900, height=700, labels=False, changes=rep.changes)
-    assert res.changes == {"added": 2, "removed": 2, "moved": 1}
+    assert res.changes == {"added": 2, "removed": 2, "moved": 2}  # the chair and the cup
     img = np.asarray(Image.open(tmp_path / "c.png").convert("RGB"))
     # Footprint edges (half a side from the centre): removed table 2 (1.5 x 0.9 at (2, 5)), added
     # cup 5 ... too small; added cup 13 likewise; moved chair 4 (0.5 x 0.5 at (3, 0), yaw 0.2).

@@ -15,8 +15,9 @@ import pytest
 from ltc_cli import hookimpl, plugins
 from ltc_cli.config import load_config
 from ltc_cli.ingest.session import ingest
+from ltc_cli.map.changes import map_changes
 from ltc_cli.map.store import load_map
-from tests.real_ghosts import active_ids, plant, still_there
+from tests.real_ghosts import GHOSTS, MOVES, active_ids, plant, still_there
 from tests.real_truth import check
 from tests.replay import Drifted, Reordered, Replay
 
@@ -80,6 +81,22 @@ def test_a_revisit_removes_every_ghost_and_old_place_and_keeps_every_other_id(ru
     assert others - active_ids(m) == set()
     if reader != "ghost-second-half":  # the second half does not see every place
         assert [lm.name for lm, ok, _ in check(load_map(m)) if not ok] == []
+
+
+def test_ltc_changes_reports_what_went_and_what_moved(run, first_session, tmp_path):
+    """After the forward revisit, ``ltc changes`` reports the two things no longer there as removed
+    and the mug and the chair as moved, 0.3 m and 1.9 m, and nothing else. Before the footprint
+    rule (``changes.in_place``) the mug's 0.3 m was "re-identified in place": under MIN_MOVE 0.5 m."""
+    m, planted, _ = planted_copy(first_session, tmp_path)
+    run(m, revisit=True)
+    rep = map_changes(load_map(m))
+    assert sorted(c.object_id for c in rep.changes if c.kind == "removed") == sorted(
+        planted[g.name] for g in GHOSTS)
+    moved = {c.from_id: c.distance for c in rep.changes if c.kind == "moved"}
+    assert sorted(moved) == sorted(planted[mv.name] for mv in MOVES)
+    assert moved[planted[MOVES[0].name]] == pytest.approx(0.3, abs=0.05)
+    assert moved[planted[MOVES[1].name]] == pytest.approx(1.9, abs=0.1)
+    assert [c for c in rep.changes if c.kind == "added"] == [] and rep.replaced == 0
 
 
 def test_a_place_the_depth_shows_occupied_goes_after_two_silent_sessions(run, first_session, tmp_path):

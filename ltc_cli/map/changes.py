@@ -10,8 +10,10 @@ Against the map as it stood at the end of session ``since`` (0-based, as ``ltc i
 - **moved**: a removal and an addition of the same class in the same session, at most
   ``move_radius`` apart in XY: the robot saw the old place empty and the object at a new place.
   Pairs are taken nearest first, so each removal and each addition is in at most one move. A pair
-  less than ``min_move`` apart is no change at all: the object is still in its place and the map
-  replaced its box by a new one (a removal after a few bad views, then a fresh detection).
+  less than ``min_move`` apart whose footprints overlap, or less than ``MIN_SMALL_MOVE`` apart, is
+  no change at all: the object is still in its place and the map replaced its box by a new one (a
+  removal after a few bad views, then a fresh detection). A small thing whose new box shares no
+  ground with its old one has moved, however little (a mug 0.3 m along the desk).
 
 Objects merged into another (duplicates found and fused) are neither removed nor added.
 """
@@ -23,14 +25,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from ltc_cli.errors import LtcError
+from ltc_cli.geometry.polygons import paired_ious
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
 from ltc_cli.map.query import classify, removal_events
 
 #: Default largest XY distance (m) of a removal and an addition that count as one move: furniture
 #: goes to another wall, small things to another room's table (measured in docs/decisions.md).
 MOVE_RADIUS = 6.0
-#: Nearer than this (m), a removal and an addition of one class are the same object in its place.
+#: Nearer than this (m), a removal and an addition of one class whose footprints overlap are the
+#: same object in its place.
 MIN_MOVE = 0.5
+#: Nearer than this (m), they are the same object in its place whatever their footprints: two
+#: visits' localisers disagree by a few centimetres, and a bottle's box is about as wide.
+MIN_SMALL_MOVE = 0.15
 KINDS = ("added", "removed", "moved")
 
 
@@ -124,12 +131,25 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
     replaced = 0
     for old, new in moves:
         new.kind, new.from_id, new.from_center = "moved", old.object_id, old.center
-        if new.distance < min_move:
+        if in_place(old, new, min_move):
             replaced += 1
         else:
             changes.append(new)
     changes.sort(key=lambda c: (c.session, KINDS.index(c.kind), c.object_id))
     return ChangeReport(since, n_sessions, changes, replaced)
+
+
+def in_place(old: Change, new: Change, min_move: float = MIN_MOVE, min_small_move: float = MIN_SMALL_MOVE) -> bool:
+    """Whether a removal ``old`` and an addition ``new`` of one class are the object in its place:
+    less than ``min_move`` apart with footprints that overlap, or less than ``min_small_move`` apart."""
+    d = float(np.hypot(new.center[0] - old.center[0], new.center[1] - old.center[1]))
+    if d >= min_move:
+        return False
+    if d < min_small_move:
+        return True
+    iou, _ = paired_ious(*(np.array([v], dtype=np.float64) for v in (old.center, old.yaw, old.size, new.center,
+                                                                      new.yaw, new.size)))
+    return bool(iou[0] > 0.0)
 
 
 def _pair_moves(removed: list[Change], added: list[Change], radius: float) -> list[tuple[Change, Change]]:
