@@ -118,7 +118,7 @@ def changes_cmd(map_path, since, move_radius, fmt):
     report = ch.map_changes(smap, since, move_radius=radius, map_path=map_path)
     if fmt == "json":
         doc = {"map": str(map_path), "since": report.since, "sessions": report.sessions,
-               "move_radius": radius, "replaced": report.replaced,
+               "move_radius": radius, "replaced": report.replaced, "confirmed": report.confirmed,
                "changes": [c.as_dict() for c in report.changes]}
         click.echo(json.dumps(doc, indent=2))
     elif fmt == "csv":
@@ -132,6 +132,8 @@ def changes_cmd(map_path, since, move_radius, fmt):
     later = report.sessions - 1 - report.since
     counts = ", ".join(f"{report.count(k)} {k}" for k in ch.KINDS)
     kept = f"; {plural(report.replaced, 'object')} re-identified in place" if report.replaced else ""
+    if report.confirmed:
+        kept += f"; {plural(report.confirmed, 'object')} an earlier visit named once, confirmed"
     click.echo(f"{map_path}: since session {report.since} ({plural(max(later, 0), 'later session')}): "
                f"{counts}{kept}", err=True)
 

@@ -51,6 +51,11 @@ def history_map() -> SemanticMap:
     15 cup    created in session 1 at (4, 8.3)           /   -> moved 0.3 m: 0.1 m boxes apart
     16 bottle session 0 at (12, 12), removed in session 1 \
     17 bottle created in session 1 at (12.12, 12)        /   -> the bottle in place: nothing (0.12 m)
+    18 cup    session 0 at (15, 15), removed in session 0 as unconfirmed (named once) \
+    19 cup    created in session 1 at (15.05, 15)                                /  -> confirmed: nothing
+    20 tv     created in session 1 at (15, 15.02)  -> added (the glimpse was a cup)
+    21 bottle session 1 at (18, 18), removed in session 1 as unconfirmed \
+    22 bottle created in session 2 at (18, 18)                          /  -> added since 0, nothing since 1
     """
     m = SemanticMap.new(["chair", "table", "cup", "couch", "tv", "bed", "bottle"])
     m.sessions = [dict(SESSION) for _ in range(3)]
@@ -74,8 +79,16 @@ def history_map() -> SemanticMap:
     add(m, [4, 8.3, 0.8], 0.0, [0.1, 0.1, 0.1], "cup", 0.7, seen=(1, 4, 1, 9))
     add(m, [12, 12, 0.8], 0.0, [0.08, 0.08, 0.25], "bottle", 0.7, status=REMOVED, seen=(0, 1, 1, 3))
     add(m, [12.12, 12, 0.8], 0.0, [0.08, 0.08, 0.25], "bottle", 0.7, seen=(1, 4, 1, 9))
+    add(m, [15, 15, 0.8], 0.0, [0.1, 0.1, 0.1], "cup", 0.6, status=REMOVED, seen=(0, 1, 0, 1))
+    add(m, [15.05, 15, 0.8], 0.0, [0.1, 0.1, 0.1], "cup", 0.7, seen=(1, 4, 1, 9))
+    add(m, [15, 15.02, 1.0], 0.0, [0.1, 0.6, 0.4], "tv", 0.7, seen=(1, 4, 1, 9))
+    add(m, [18, 18, 0.8], 0.0, [0.08, 0.08, 0.25], "bottle", 0.6, status=REMOVED, seen=(1, 1, 1, 1))
+    add(m, [18, 18, 0.8], 0.0, [0.08, 0.08, 0.25], "bottle", 0.7, seen=(2, 4, 2, 9))
     for oid, session in ((2, 1), (3, 1), (6, 1), (11, 0), (12, 1), (14, 1), (16, 1)):
         removed_in(m, oid, session)
+    once = "unconfirmed: 1 detection in 3 clear views in the session that created it (needs 2)"
+    removed_in(m, 18, 0, once)
+    removed_in(m, 21, 1, once)
     m.events.append(Event(1, 2, "lap/1", "merged", 1, 8))
     return m
 
@@ -88,7 +101,13 @@ def test_rules_on_a_map_built_by_hand():
     m = history_map()
     rep = map_changes(m, since=0)
     assert kinds(rep) == sorted([("removed", 2, None, 1), ("moved", 4, 3, 1), ("added", 5, None, 1),
-                                 ("removed", 12, None, 1), ("added", 13, None, 2), ("moved", 15, 14, 1)])
+                                 ("removed", 12, None, 1), ("added", 13, None, 2), ("moved", 15, 14, 1),
+                                 ("added", 20, None, 1), ("added", 22, None, 2)])
+    # The cup session 0 named once at its place is no change; the bottle session 1 named once is,
+    # since session 0, and is not since session 1 (which glimpsed it).
+    assert rep.confirmed == 1
+    since1 = map_changes(m, since=1)
+    assert kinds(since1) == [("added", 13, None, 2)] and since1.confirmed == 1
     assert rep.replaced == 2  # the couch, 0.2 m from where it was, its boxes overlapping; the bottle
     moved = next(c for c in rep.changes if c.kind == "moved" and c.cls == "chair")
     assert moved.distance == pytest.approx(3.0) and moved.from_center[:2] == [0, 0]
@@ -96,12 +115,12 @@ def test_rules_on_a_map_built_by_hand():
     # couch's 2 m boxes 0.2 m apart overlap: in place. Boxes apart by less than MIN_SMALL_MOVE: in place.
     cup = next(c for c in rep.changes if c.kind == "moved" and c.cls == "cup")
     assert cup.distance == pytest.approx(0.3)
-    # The default compares with the session before the last: only session 2's cup.
+    # The default compares with the session before the last: session 2's cup (and not the bottle).
     assert kinds(map_changes(m)) == [("added", 13, None, 2)]
     # With a smaller radius the chair is a removal and an addition.
     assert ("removed", 3, None, 1) in kinds(map_changes(m, since=0, move_radius=2.0))
     # Against an empty map everything active was added.
-    assert {c.object_id for c in map_changes(m, since=-1).changes} == {1, 4, 5, 7, 10, 13, 15, 17}
+    assert {c.object_id for c in map_changes(m, since=-1).changes} == {1, 4, 5, 7, 10, 13, 15, 17, 19, 20, 22}
 
 
 def test_cli_formats_and_errors(tmp_path):
@@ -111,16 +130,20 @@ def test_cli_formats_and_errors(tmp_path):
     r = runner.invoke(cli, ["changes", str(path), "--since", "0", "--format", "json"])
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
-    assert [(c["change"], c["id"]) for c in doc["changes"]] == [("added", 5), ("removed", 2), ("removed", 12),
-                                                                  ("moved", 4), ("moved", 15), ("added", 13)]
-    assert doc["changes"][3]["from_id"] == 3 and doc["changes"][3]["distance"] == pytest.approx(3.0)
+    assert [(c["change"], c["id"]) for c in doc["changes"]] == [("added", 5), ("added", 20), ("removed", 2),
+                                                                  ("removed", 12), ("moved", 4), ("moved", 15),
+                                                                  ("added", 13), ("added", 22)]
+    assert doc["changes"][4]["from_id"] == 3 and doc["changes"][4]["distance"] == pytest.approx(3.0)
+    assert doc["replaced"] == 2 and doc["confirmed"] == 1
     r = runner.invoke(cli, ["changes", str(path), "--since", "0", "--format", "csv"])
     rows = list(csv.DictReader(io.StringIO(r.stdout)))
-    assert [row["change"] for row in rows] == ["added", "removed", "removed", "moved", "moved", "added"]
-    assert rows[3]["from_id"] == "3"
+    assert [row["change"] for row in rows] == ["added", "added", "removed", "removed", "moved", "moved", "added",
+                                               "added"]
+    assert rows[4]["from_id"] == "3"
     r = runner.invoke(cli, ["changes", str(path), "--since", "0"])
     assert r.exit_code == 0 and r.stdout.splitlines()[0].split()[:4] == ["change", "class", "id", "session"]
-    assert "2 added, 2 removed, 2 moved; 2 objects re-identified in place" in r.stderr
+    assert ("4 added, 2 removed, 2 moved; 2 objects re-identified in place; 1 object an earlier visit named "
+            "once, confirmed") in r.stderr
     r = runner.invoke(cli, ["changes", str(path), "--since", "7"])
     assert r.exit_code == 1 and r.stderr.strip() == f"Error: {path}: session 7 is not in this map (sessions 0..2; -1 compares with an empty map)"
 
@@ -177,7 +200,7 @@ def test_render_marks_the_changes(tmp_path):
     m = history_map()
     rep = map_changes(m, since=0)
     res = render_map(m, tmp_path / "c.png", width=900, height=700, labels=False, changes=rep.changes)
-    assert res.changes == {"added": 2, "removed": 2, "moved": 2}  # the chair and the cup
+    assert res.changes == {"added": 4, "removed": 2, "moved": 2}  # moved: the chair and the cup
     img = np.asarray(Image.open(tmp_path / "c.png").convert("RGB"))
     # Footprint edges (half a side from the centre): removed table 2 (1.5 x 0.9 at (2, 5)), added
     # cup 5 ... too small; added cup 13 likewise; moved chair 4 (0.5 x 0.5 at (3, 0), yaw 0.2).
@@ -196,3 +219,12 @@ def test_render_changes_from_the_command_line(two_laps, tmp_path):
     assert "JPEG" in r.output and "changes:" in r.output
     with Image.open(tmp_path / "c.jpg") as im:
         assert im.format == "JPEG"
+
+
+def test_the_word_of_a_removal_as_unconfirmed_is_the_one_changes_reads():
+    """``changes.UNCONFIRMED`` is how pipeline/reasons.py's reason for a removal as unconfirmed starts."""
+    from ltc_cli.map.changes import UNCONFIRMED
+    from ltc_cli.pipeline.reasons import unconfirmed_detail
+
+    assert unconfirmed_detail(1, 3, 2, 0.2, 1, 2).startswith(UNCONFIRMED)
+    assert unconfirmed_detail(0, 0, 2, None).startswith(UNCONFIRMED)

@@ -15,7 +15,10 @@ Against the map as it stood at the end of session ``since`` (0-based, as ``ltc i
   removal after a few bad views, then a fresh detection). A small thing whose new box shares no
   ground with its old one has moved, however little (a mug 0.3 m along the desk).
 
-Objects merged into another (duplicates found and fused) are neither removed nor added.
+Objects merged into another (duplicates found and fused) are neither removed nor added, and an
+addition where a session up to ``since`` named a thing of its class once (an object it removed as
+unconfirmed, at the same place by :func:`in_place`) is no change either: the thing was there, and
+a later visit's detector confirmed what the earlier one glimpsed (``ChangeReport.confirmed``).
 """
 
 from __future__ import annotations
@@ -38,6 +41,9 @@ MIN_MOVE = 0.5
 #: Nearer than this (m), they are the same object in its place whatever their footprints: two
 #: visits' localisers disagree by a few centimetres, and a bottle's box is about as wide.
 MIN_SMALL_MOVE = 0.15
+#: The word the event log's reason for a removal as unconfirmed starts with
+#: (ltc_cli/pipeline/reasons.py ``unconfirmed_detail``).
+UNCONFIRMED = "unconfirmed:"
 KINDS = ("added", "removed", "moved")
 
 
@@ -86,6 +92,7 @@ class ChangeReport:
     sessions: int  # sessions in the map
     changes: list[Change]
     replaced: int = 0  # objects still in place whose box the map replaced (not changes)
+    confirmed: int = 0  # objects an earlier session named once at their place (not changes)
 
     def count(self, kind: str) -> int:
         return sum(c.kind == kind for c in self.changes)
@@ -124,6 +131,11 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
     ]
     added = [_change(smap, "added", r, cls_idx, t.first_session[r])
              for r in np.flatnonzero((t.status == ACTIVE) & (t.first_session > since))]
+    glimpsed = [_change(smap, "removed", r, cls_idx, ev.session) for r in np.flatnonzero(t.status == REMOVED)
+                if (ev := removals.get(r + 1)) is not None and str(ev.detail).startswith(UNCONFIRMED)]
+    # Named once by a session the report compares with (at or before ``since``): it was there.
+    confirmed = [a for a in added if any(g.cls == a.cls and g.session <= since and in_place(g, a) for g in glimpsed)]
+    added = [a for a in added if not any(a is c for c in confirmed)]
     moves = _pair_moves(removed, added, move_radius)
     used_r = {id(m[0]) for m in moves}
     used_a = {id(m[1]) for m in moves}
@@ -136,7 +148,7 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
         else:
             changes.append(new)
     changes.sort(key=lambda c: (c.session, KINDS.index(c.kind), c.object_id))
-    return ChangeReport(since, n_sessions, changes, replaced)
+    return ChangeReport(since, n_sessions, changes, replaced, len(confirmed))
 
 
 def in_place(old: Change, new: Change, min_move: float = MIN_MOVE, min_small_move: float = MIN_SMALL_MOVE) -> bool:
