@@ -103,9 +103,12 @@ def active_ids(map_path) -> set[int]:
 def ghost_lines(first_map, tmp, revisit, passes) -> list[str]:
     """benchmarks/bench_real.py's report: for each pass (label, [reader of each revisit]), a copy
     of the one-session map ``first_map`` planted (:func:`plant`) and revisited by
-    ``revisit(map, reader)``: which boxes each revisit left, and the other ids it lost."""
+    ``revisit(map, reader)``: which boxes each revisit left, the other ids it lost, and what
+    ``ltc changes`` reports against the planted map (session 0)."""
     import shutil
     from pathlib import Path
+
+    from ltc_cli.map.changes import KINDS, map_changes
 
     out = [f"  ghosts put into the session-1 map (tests/real_ghosts.py: {len(GHOSTS)} things no longer there, "
            f"{len(MOVES)} moved):"]
@@ -122,5 +125,9 @@ def ghost_lines(first_map, tmp, revisit, passes) -> list[str]:
             stays = f" ({'; '.join(left)} stays)" if left else ""
             steps.append(f"{len(planted) - len(left)} of {len(planted)} gone{stays}")
         lost = others - active_ids(m)
-        out.append(f"    {label}: {' -> '.join(steps)}; other ids kept {len(others) - len(lost)} of {len(others)}")
+        rep = map_changes(load_map(m), since=0)
+        moves = ", ".join(f"{c.cls} {c.distance:.2f} m" for c in rep.changes if c.kind == "moved")
+        said = ", ".join(f"{rep.count(k)} {k}" for k in KINDS) + (f" ({moves})" if moves else "")
+        out.append(f"    {label}: {' -> '.join(steps)}; other ids kept {len(others) - len(lost)} of {len(others)}; "
+                   f"ltc changes: {said}")
     return out
