@@ -228,3 +228,25 @@ def test_the_word_of_a_removal_as_unconfirmed_is_the_one_changes_reads():
 
     assert unconfirmed_detail(1, 3, 2, 0.2, 1, 2).startswith(UNCONFIRMED)
     assert unconfirmed_detail(0, 0, 2, None).startswith(UNCONFIRMED)
+
+
+def test_glimpses_found_by_the_grid_are_the_pairs_in_place_one_by_one():
+    """``changes.glimpsed_at`` (candidate pairs from a grid of MIN_MOVE cells, IoUs at once) against
+    :func:`changes.in_place` over every pair of the same class: 300 additions and 2000 glimpses of
+    two classes, 0.05-0.6 m boxes at random in a 16 m square (so that pairs at every distance
+    occur, across cell edges too)."""
+    from ltc_cli.map.changes import Change, glimpsed_at, in_place
+
+    rng = np.random.default_rng(7)
+
+    def changes(n, kind):
+        return [Change(kind, k + 1, ["cup", "chair"][k % 2], 1, [*rng.uniform(-8, 8, 2), 0.5],
+                       float(rng.uniform(-np.pi / 2, np.pi / 2)), [*rng.uniform(0.05, 0.6, 2), 0.4])
+                for k in range(n)]
+
+    added, glimpsed = changes(300, "added"), changes(2000, "removed")
+    want = np.array([any(g.cls == a.cls and in_place(g, a) for g in glimpsed) for a in added])
+    assert 20 < want.sum() < 280  # both answers occur
+    assert np.array_equal(glimpsed_at(added, glimpsed), want)
+    assert not glimpsed_at(added, []).any() and glimpsed_at([], glimpsed).shape == (0,)
+    assert not glimpsed_at(added, glimpsed, min_move=0.0).any()  # nothing is in place under 0 m

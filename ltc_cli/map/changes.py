@@ -131,11 +131,13 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
     ]
     added = [_change(smap, "added", r, cls_idx, t.first_session[r])
              for r in np.flatnonzero((t.status == ACTIVE) & (t.first_session > since))]
-    glimpsed = [_change(smap, "removed", r, cls_idx, ev.session) for r in np.flatnonzero(t.status == REMOVED)
-                if (ev := removals.get(r + 1)) is not None and str(ev.detail).startswith(UNCONFIRMED)]
     # Named once by a session the report compares with (at or before ``since``): it was there.
-    confirmed = [a for a in added if any(g.cls == a.cls and g.session <= since and in_place(g, a) for g in glimpsed)]
-    added = [a for a in added if not any(a is c for c in confirmed)]
+    glimpsed = [_change(smap, "removed", r, cls_idx, ev.session) for r in np.flatnonzero(t.status == REMOVED)
+                if (ev := removals.get(r + 1)) is not None and ev.session <= since
+                and str(ev.detail).startswith(UNCONFIRMED)]
+    seen_once = glimpsed_at(added, glimpsed, min_move)
+    confirmed = int(seen_once.sum())
+    added = [a for a, once in zip(added, seen_once) if not once]
     moves = _pair_moves(removed, added, move_radius)
     used_r = {id(m[0]) for m in moves}
     used_a = {id(m[1]) for m in moves}
@@ -148,7 +150,44 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
         else:
             changes.append(new)
     changes.sort(key=lambda c: (c.session, KINDS.index(c.kind), c.object_id))
-    return ChangeReport(since, n_sessions, changes, replaced, len(confirmed))
+    return ChangeReport(since, n_sessions, changes, replaced, confirmed)
+
+
+def glimpsed_at(added: list[Change], glimpsed: list[Change], min_move: float = MIN_MOVE,
+                min_small_move: float = MIN_SMALL_MOVE) -> np.ndarray:
+    """(A,) bool: the additions at whose place (:func:`in_place`) one of ``glimpsed`` (objects
+    removed as unconfirmed) of their class stood. Candidate pairs come from a grid of
+    ``min_move`` cells (a glimpse within ``min_move`` lies in the 3 x 3 cells around an addition),
+    so that a map of many sessions' glimpses costs a fraction of a second."""
+    out = np.zeros(len(added), dtype=bool)
+    if not added or not glimpsed or min_move <= 0:
+        return out
+    boxes = {}
+    for name, group in (("a", added), ("g", glimpsed)):
+        boxes[name] = (np.array([c.cls for c in group]), np.array([c.center for c in group], dtype=np.float64),
+                       np.array([c.yaw for c in group], dtype=np.float64),
+                       np.array([c.size for c in group], dtype=np.float64))
+    (a_cls, a_c, a_yaw, a_size), (g_cls, g_c, g_yaw, g_size) = boxes["a"], boxes["g"]
+    cells: dict = {}
+    for k, key in enumerate(zip(g_cls.tolist(), *np.floor(g_c[:, :2] / min_move).astype(np.int64).T.tolist())):
+        cells.setdefault(key, []).append(k)
+    pa, pg = [], []
+    for k, (cls, i, j) in enumerate(zip(a_cls.tolist(), *np.floor(a_c[:, :2] / min_move).astype(np.int64).T.tolist())):
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                near = cells.get((cls, i + di, j + dj), ())
+                pa += [k] * len(near)
+                pg += near
+    if not pa:
+        return out
+    pa, pg = np.array(pa), np.array(pg)
+    d = np.hypot(a_c[pa, 0] - g_c[pg, 0], a_c[pa, 1] - g_c[pg, 1])
+    keep = d < min_move
+    pa, pg, d = pa[keep], pg[keep], d[keep]
+    same = d < min_small_move
+    iou, _ = paired_ious(g_c[pg], g_yaw[pg], g_size[pg], a_c[pa], a_yaw[pa], a_size[pa])
+    out[pa[same | (iou > 0.0)]] = True
+    return out
 
 
 def in_place(old: Change, new: Change, min_move: float = MIN_MOVE, min_small_move: float = MIN_SMALL_MOVE) -> bool:
