@@ -23,7 +23,8 @@ room would be off in another way each time. Six more give it a weaker detector, 
 or 50 % of the detections (``WEAKER_SHARES``), a draw for each session. And its session-1 map, with
 boxes put in of things no longer there and at moved things' old places (tests/real_ghosts.py), is
 revisited in five ways (``GHOST_PASSES``): which of those boxes each revisit removes, and whether it
-keeps every other id.
+keeps every other id. After every group of passes, what ``ltc changes`` reports of its revisits:
+the room did not change, so anything it reports is wrong.
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -53,7 +54,7 @@ from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
 from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
-from tests.real_ghosts import ghost_lines  # noqa: E402
+from tests.real_ghosts import ghost_lines, unchanged_lines  # noqa: E402
 from tests.real_truth import APART, COUNTS, TUM_FR1_RPY, check, merged_pairs  # noqa: E402
 from tests.replay import Drifted, Reordered, Replay, weaker  # noqa: E402
 
@@ -387,20 +388,20 @@ def main():
                       ("even frames, then the odd ones", m_odd), ("every third frame", m_third),
                       *((f"{a.replace('-', ' ')}, then the {b.replace('-', ' ')}", tmp / f"{name}-{a}.h5")
                         for a, b in (("first-half", "second-half"), ("second-half", "first-half")))]
-            for line in landmarks_line(name, passes) + apart_line(name, passes):
+            for line in landmarks_line(name, passes) + apart_line(name, passes) + unchanged_lines(passes):
                 print(line)
             if name in LANDMARKS:
                 for line in ghost_lines(tmp / f"{name}-s1.h5", tmp, lambda m, r: ingest(
                         [path], m, load_config(None, sets), reader=r, revisit=True), GHOST_PASSES):
                     print(line)
                 later = later_passes(name, path, tmp, sets, args.keep)
-                for line in landmarks_line(name, later) + apart_line(name, later):
+                for line in landmarks_line(name, later) + apart_line(name, later) + unchanged_lines(later):
                     print(line)
                 drift = drift_passes(name, path, tmp, sets, args.keep)
-                for line in landmarks_line(name, drift) + apart_line(name, drift):
+                for line in landmarks_line(name, drift) + apart_line(name, drift) + unchanged_lines(drift):
                     print(line)
                 weak = weaker_passes(name, path, tmp, sets, args.keep)
-                for line in landmarks_line(name, weak) + apart_line(name, weak):
+                for line in landmarks_line(name, weak) + apart_line(name, weak) + unchanged_lines(weak):
                     print(line)
 
 
