@@ -58,7 +58,7 @@ def scale(n: int) -> None:
         rep = map_changes(m, since=0)
         best = min(best or 1e9, time.process_time() - c0)
     print(f"map_changes on {n} glimpses and {n // 4} additions: {best:.3f} s CPU (fastest of 3); "
-          f"{rep.count('added')} added, {getattr(rep, 'confirmed', 0)} confirmed")
+          f"{rep.count('added')} added, {rep.confirmed} confirmed")
 
 
 def main() -> None:

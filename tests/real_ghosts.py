@@ -24,12 +24,16 @@ and removes it in one).
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from ltc_cli.map.changes import KINDS, map_changes
 from ltc_cli.map.model import ACTIVE, Event, top_class
 from ltc_cli.map.store import load_map, save_map
+from ltc_cli.text import plural
 from tests.real_truth import TUM_FR1_RPY, box_gaps
 
 
@@ -105,11 +109,6 @@ def ghost_lines(first_map, tmp, revisit, passes) -> list[str]:
     of the one-session map ``first_map`` planted (:func:`plant`) and revisited by
     ``revisit(map, reader)``: which boxes each revisit left, the other ids it lost, and what
     ``ltc changes`` reports against the planted map (session 0)."""
-    import shutil
-    from pathlib import Path
-
-    from ltc_cli.map.changes import KINDS, map_changes
-
     out = [f"  ghosts put into the session-1 map (tests/real_ghosts.py: {len(GHOSTS)} things no longer there, "
            f"{len(MOVES)} moved):"]
     for k, (label, readers) in enumerate(passes):
@@ -137,9 +136,6 @@ def unchanged_lines(maps) -> list[str]:
     """benchmarks/bench_real.py's report on passes over a room that did not change: what
     ``ltc changes`` reports after each map's last session (maps of one session are skipped), and
     how many additions it counted as confirmed (an earlier session's glimpse)."""
-    from ltc_cli.map.changes import KINDS, map_changes
-    from ltc_cli.text import plural
-
     reports = [(label, map_changes(smap)) for label, path in maps
                if len((smap := load_map(path)).sessions) > 1]
     if not reports:
