@@ -76,9 +76,23 @@ def export_cmd(map_path, fmt, output, origin):
 @click.option("--changes", "show_changes", is_flag=True,
               help="Mark what the latest visit changed (as `ltc changes`): added green, removed red, moved orange.")
 @click.option("--since", type=click.IntRange(min=-1), metavar="SESSION", help="With --changes: changes after this session.")
-def render_cmd(map_path, output, ground_truth, width, height, labels, show_changes, since):
+@click.option("--recording", type=click.Path(), metavar="RECORDING",
+              help="Instead of top-down: draw the boxes into frames of this recording, as its camera saw them.")
+@click.option("--frames", "frame_list", metavar="I,J,...",
+              help="With --recording: the frames (0-based indices) to draw [default: four spread evenly].")
+@click.option("--columns", type=click.IntRange(1, 64), default=2, show_default=True, help="With --recording: frames a row.")
+@click.option("--scale", type=click.FloatRange(0.05, 4.0), default=1.0, show_default=True,
+              help="With --recording: each frame's size against the recording's images.")
+@click.option("--id", "ids", type=click.IntRange(min=1), multiple=True, help="With --recording: only this object (repeat).")
+@click.option("--format", "reader", help="With --recording: its reader (default: detected).")
+@click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE",
+              help="With --recording: a reader option (as for ingest).")
+@click.pass_context
+def render_cmd(ctx, map_path, output, ground_truth, width, height, labels, show_changes, since, recording, frame_list,
+               columns, scale, ids, reader, reader_opts):
     """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a picture (PNG, or
-    JPEG, WebP, TIFF, BMP by the output's suffix)."""
+    JPEG, WebP, TIFF, BMP by the output's suffix); with --recording, its boxes drawn into that
+    recording's frames instead (to see that each box sits on its thing)."""
     from pathlib import Path
 
     from ltc_cli.map.changes import map_changes
@@ -87,6 +101,20 @@ def render_cmd(map_path, output, ground_truth, width, height, labels, show_chang
 
     if since is not None and not show_changes:
         raise click.UsageError("--since goes with --changes")
+    given = {name for name in ("ground_truth", "width", "height", "labels", "show_changes", "frame_list", "columns",
+                               "scale", "ids", "reader", "reader_opts")
+             if ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE}
+    if recording is not None:
+        top_down = sorted(given & {"ground_truth", "width", "height", "labels", "show_changes"})
+        if top_down:
+            raise click.UsageError(f"--{top_down[0].replace('_', '-').replace('show-', '')} draws the top-down "
+                                   "picture; it does not go with --recording")
+        _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts)
+        return
+    framed = sorted(given & {"frame_list", "columns", "scale", "ids", "reader", "reader_opts"})
+    if framed:
+        option = {"frame_list": "frames", "ids": "id", "reader": "format", "reader_opts": "reader-option"}
+        raise click.UsageError(f"--{option.get(framed[0], framed[0])} goes with --recording")
     smap = load_map(map_path, events=show_changes)  # only --changes reads the event log
     gt = load_ground_truth(ground_truth) if ground_truth else None
     changes = map_changes(smap, since, map_path=map_path).changes if show_changes else None
@@ -99,43 +127,36 @@ def render_cmd(map_path, output, ground_truth, width, height, labels, show_chang
     click.echo(f"{output}: {res.width}x{res.height} px{fmt}, {plural(res.objects, 'object')}{extra}")
 
 
-@cli.command("changes")
-@click.argument("map_path", type=click.Path())
-@click.option("--since", type=click.IntRange(min=-1), metavar="SESSION",
-              help="Compare with the map at the end of this session (0-based, as `ltc info` numbers them; "
-                   "-1: an empty map). Default: the session before the last, i.e. what the latest visit changed.")
-@click.option("--move-radius", type=click.FloatRange(min=0), default=None, metavar="M",
-              help="Largest distance (m) between a removal and an addition of one class that is reported as a move "
-                   "[default: 6].")
-@click.option("--format", "fmt", type=click.Choice(["table", "json", "csv"]), default="table", show_default=True)
-def changes_cmd(map_path, since, move_radius, fmt):
-    """List the objects added, removed and moved since a session (from the map's event log)."""
-    from ltc_cli.map import changes as ch
+def _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts) -> None:
+    from ltc_cli.cli import reader_options
+    from ltc_cli.map.render_frames import default_frames, frame_sheet
     from ltc_cli.map.store import load_map
+    from ltc_cli.recordings.open import open_recording
 
-    smap = load_map(map_path)
-    radius = ch.MOVE_RADIUS if move_radius is None else move_radius
-    report = ch.map_changes(smap, since, move_radius=radius, map_path=map_path)
-    if fmt == "json":
-        doc = {"map": str(map_path), "since": report.since, "sessions": report.sessions,
-               "move_radius": radius, "replaced": report.replaced, "confirmed": report.confirmed,
-               "changes": [c.as_dict() for c in report.changes]}
-        click.echo(json.dumps(doc, indent=2))
-    elif fmt == "csv":
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(ch.COLUMNS)
-        w.writerows(ch.flat_rows(report))
-        click.echo(buf.getvalue(), nl=False)
-    elif report.changes:
-        click.echo("\n".join(ch.table_lines(report)))
-    later = report.sessions - 1 - report.since
-    counts = ", ".join(f"{report.count(k)} {k}" for k in ch.KINDS)
-    kept = f"; {plural(report.replaced, 'object')} re-identified in place" if report.replaced else ""
-    if report.confirmed:
-        kept += f"; {plural(report.confirmed, 'object')} an earlier visit named once, confirmed"
-    click.echo(f"{map_path}: since session {report.since} ({plural(max(later, 0), 'later session')}): "
-               f"{counts}{kept}", err=True)
+    smap = load_map(map_path, events=False)
+    rec = open_recording(recording, reader, reader_options(reader_opts))
+    n = len(rec.frames)
+    if frame_list:
+        try:
+            indices = [int(x) for x in frame_list.split(",") if x.strip()]
+        except ValueError:
+            raise click.BadParameter(f"{frame_list!r} is not a list of frame indices (e.g. 0,50,100)",
+                                     param_hint="--frames") from None
+        bad = [i for i in indices if not 0 <= i < n]
+        if bad or not indices:
+            raise click.BadParameter(f"frame {bad[0] if bad else frame_list!r} is not in the recording "
+                                     f"(frames 0..{n - 1})", param_hint="--frames")
+        indices = list(dict.fromkeys(indices))
+    else:
+        indices = default_frames(n)
+    missing = sorted(set(ids) - {int(r) + 1 for r in smap.active_rows()})
+    if missing:
+        raise click.BadParameter(f"object {missing[0]} is not in the map (or was removed)", param_hint="--id")
+    res = frame_sheet(smap, rec, indices, output, columns=columns, scale=scale, ids=set(ids) or None,
+                      on_skip=lambda i, exc: click.echo(f"warning: frame {i} skipped: {exc}", err=True))
+    shown = len(ids) if ids else len(smap.active_rows())
+    click.echo(f"{output}: {res.width}x{res.height} px, {plural(len(res.frames), 'frame')} of {recording}, "
+               f"{plural(shown, 'object')} ({res.in_view} in view)")
 
 
 @cli.command("view")
@@ -155,13 +176,14 @@ def view_cmd(map_path, recording, reader, reader_opts, every, no_images, save):
 
     from ltc_cli.cli import reader_options
     from ltc_cli.map import rrd
+    from ltc_cli.map.render_frames import recording_to_map
     from ltc_cli.map.store import load_map
     from ltc_cli.recordings.open import open_recording
 
     rrd.require_rerun()
     smap = load_map(map_path)
     rec = open_recording(recording, reader, reader_options(reader_opts)) if recording else None
-    T = rrd.recording_to_map(smap, rec) if rec is not None else None
+    T = recording_to_map(smap, rec) if rec is not None else None
 
     skips = SkippedFrames(lambda message: click.echo(f"warning: {message}", err=True))
 

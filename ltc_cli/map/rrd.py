@@ -114,28 +114,6 @@ def log_recording(rec, recording, T_map_world: np.ndarray, every: int = 1, image
     return done
 
 
-def recording_to_map(smap: SemanticMap, recording) -> np.ndarray:
-    """T_map_world (4, 4) of a recording: the up rotation its ingest applied (from the map's session
-    rows), else the one ingest would apply now."""
-    import json
-
-    for row in reversed(smap.sessions):
-        try:
-            ids, ups = json.loads(row.get("recordings") or "[]"), json.loads(row.get("up_rotation") or "[]")
-        except ValueError:
-            continue
-        if recording.identity in ids and len(ups) == len(ids):
-            R = np.asarray(ups[ids.index(recording.identity)], dtype=np.float64)
-            break
-    else:
-        from ltc_cli.ingest.frame_setup import frame_setup_for
-
-        R = frame_setup_for(recording).R_up
-    T = np.eye(4)
-    T[:3, :3] = R
-    return T
-
-
 def new_stream(name: str):
     rr = require_rerun()
     return rr.RecordingStream(APPLICATION_ID, recording_id=name)
