@@ -30,6 +30,7 @@ import numpy as np
 from ltc_cli.errors import RecordingError
 from ltc_cli.geometry.camera import backproject, rotation_between, transform
 from ltc_cli.geometry.depth_noise import estimate_depth_noise
+from ltc_cli.ingest.pose_check import pose_warning
 from ltc_cli.ingest.sampling import sample_frames_of
 from ltc_cli.types import Recording
 
@@ -351,7 +352,8 @@ def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None)
     from the depth of a few frames (None when no floor is in view); depth_noise is measured on the
     same frames (ltc_cli/geometry/depth_noise.py). ``warn(message)`` is told when
     an estimate found no horizontal plane and rests on the cameras alone (a map tilted by the
-    cameras' mean pitch is then likely).
+    cameras' mean pitch is then likely), and when the poses do not fit the depth
+    (ltc_cli/ingest/pose_check.py).
     """
     estimating = isinstance(rec.up, str) and rec.up == "estimate"
     if sample_frames is None:
@@ -372,6 +374,8 @@ def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None)
                  f"shows the axis), give it (-r up=z, or up: in recording.yaml)")
     else:
         R_up = rotation_between(np.asarray(rec.up, dtype=np.float64), [0.0, 0.0, 1.0])
+    if warn is not None and (message := pose_warning(rec, frames)):
+        warn(message)
     zs = []
     for f in frames:
         v, u = np.mgrid[4 : f.depth_m.shape[0] : 8, 4 : f.depth_m.shape[1] : 8]

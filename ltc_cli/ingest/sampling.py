@@ -55,3 +55,16 @@ def sample_frames_of(rec: Recording, n: int) -> list:
         if isinstance(rec.frames, list):
             rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load))
     return out
+
+
+def load_kept(rec: Recording, i: int):
+    """Frame ``i`` of the recording, loaded now and handed to the next load of it (the ingest's), or
+    None when it cannot be read (the ingest then reports it)."""
+    ref = rec.frames[i]
+    try:
+        frame = ref.load()
+    except FrameError:
+        return None
+    if isinstance(rec.frames, list):
+        rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load))
+    return frame

@@ -7,19 +7,26 @@ from pathlib import Path
 
 from ltc_cli import plugins
 from ltc_cli.errors import RecordingError
+from ltc_cli.recordings.conventions import read_poses_as
 from ltc_cli.types import Recording
 
 
 def open_recording(path, reader: str | None = None, options: dict | None = None) -> Recording:
-    """Open a recording with the named reader, or the first installed reader that recognises it."""
+    """Open a recording with the named reader, or the first installed reader that recognises it.
+    The option ``pose_convention`` is every reader's: the convention the poses are written in,
+    when it is not ltc's (ltc_cli/recordings/conventions.py)."""
     p = Path(path)
     if not p.exists():
         raise RecordingError("recording does not exist", p)
+    options = dict(options or {})
+    poses = options.pop("pose_convention", None)
     if reader:
-        return plugins.get("readers", reader).factory.open(p, options or {})
+        rec = plugins.get("readers", reader).factory.open(p, options)
+        return rec if poses is None else read_poses_as(rec, poses)
     for name, reg in sorted(plugins.registry("readers").items()):
         if reg.factory.sniff(p):
-            return reg.factory.open(p, options or {})
+            rec = reg.factory.open(p, options)
+            return rec if poses is None else read_poses_as(rec, poses)
     known = ", ".join(sorted(plugins.registry("readers")))
     raise RecordingError(f"no reader recognises this folder (installed readers: {known})", p)
 

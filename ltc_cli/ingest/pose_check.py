@@ -1,0 +1,49 @@
+"""An ingest's check, at its set-up, that a recording's poses fit its depth
+(ltc_cli/geometry/pose_agreement.py). Poses in another convention than ltc's make a map of
+nonsense without any error; this says which convention they look like before anything is mapped.
+"""
+
+from __future__ import annotations
+
+from ltc_cli.geometry.pose_agreement import READINGS, TOLERANCE, judge_poses
+from ltc_cli.ingest.sampling import load_kept
+
+#: Pairs of consecutive frames compared: each a frame the set-up read anyway and the one after it.
+PAIRS = 4
+
+
+def frame_pairs(rec, frames: list, n: int = PAIRS) -> list:
+    """(depth_a, depth_b, T_world_a, T_world_b, intrinsics) of up to ``n`` of the loaded ``frames``
+    (spread over them) and the frame after each in the recording (before, for the last one)."""
+    loaded = {f.index: f for f in frames}
+    chosen = sorted(frames, key=lambda f: f.index)
+    picks = sorted({round(k * (len(chosen) - 1) / max(n - 1, 1)) for k in range(min(n, len(chosen)))})
+    out = []
+    for a in (chosen[k] for k in picks):
+        j = a.index + 1 if a.index + 1 < len(rec.frames) else a.index - 1
+        if j < 0:
+            continue
+        b = loaded.get(j) or load_kept(rec, j)
+        if b is not None:
+            loaded[j] = b
+            out.append((a.depth_m, b.depth_m, a.T_world_camera, b.T_world_camera, a.intrinsics))
+    return out
+
+
+def pose_warning(rec, frames: list) -> str | None:
+    """One line on what the recording's poses look like when they do not fit its depth, else None."""
+    verdict = judge_poses(frame_pairs(rec, frames))
+    if verdict is None:
+        return None
+    given = verdict.agree["as given"]
+    if verdict.better is not None:
+        what, _ = READINGS[verdict.better]
+        return (f"{rec.path}: its poses look like {what}: read so, consecutive frames agree "
+                f"({verdict.agree[verdict.better]:.0%} of depth readings land within {TOLERANCE * 100:.0f} cm of the "
+                f"next frame's, against {given:.0%} as given); the map will be wrong unless they are read so: "
+                f"-r pose_convention={verdict.better}")
+    if verdict.disagree:
+        return (f"{rec.path}: consecutive frames disagree where they overlap (only {given:.0%} of depth readings "
+                f"land within {TOLERANCE * 100:.0f} cm of the next frame's): check that the poses are camera-to-world "
+                f"with OpenCV camera axes, and the intrinsics and the depth scale")
+    return None
