@@ -14,18 +14,20 @@ PAIRS = 4
 
 def frame_pairs(rec, frames: list, n: int = PAIRS) -> list:
     """(depth_a, depth_b, T_world_a, T_world_b, intrinsics) of up to ``n`` of the loaded ``frames``
-    (spread over them) and the frame after each in the recording (before, for the last one)."""
-    loaded = {f.index: f for f in frames}
-    chosen = sorted(frames, key=lambda f: f.index)
+    (spread over them) and the frame after each in the recording's list (before, for the last)."""
+    position = {ref.key: k for k, ref in enumerate(rec.frames)}
+    loaded = {position[f.key]: f for f in frames if f.key in position}
+    chosen = sorted(loaded)
     picks = sorted({round(k * (len(chosen) - 1) / max(n - 1, 1)) for k in range(min(n, len(chosen)))})
     out = []
-    for a in (chosen[k] for k in picks):
-        j = a.index + 1 if a.index + 1 < len(rec.frames) else a.index - 1
+    for i in (chosen[k] for k in picks):
+        j = i + 1 if i + 1 < len(rec.frames) else i - 1
         if j < 0:
             continue
         b = loaded.get(j) or load_kept(rec, j)
         if b is not None:
             loaded[j] = b
+            a = loaded[i]
             out.append((a.depth_m, b.depth_m, a.T_world_camera, b.T_world_camera, a.intrinsics))
     return out
 
