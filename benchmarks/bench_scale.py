@@ -1,7 +1,7 @@
 """Commands on big maps (issue 11), in one run: CPU seconds and peak memory (max RSS) of
 
 1. ``ltc export`` of a 100,000-object map (tests/sample_maps.big_map) as JSON and as WGS84 GeoJSON
-   to a file;
+   to a file, and ``ltc render --recording`` of it into four frames of the sample recording;
 2. ``ltc query MAP --id 5``, ``ltc info MAP`` and ``ltc query MAP --removed`` on a map with 1.5M
    events (20,000 objects, built here with the library);
 
@@ -173,6 +173,9 @@ def main():
         (f"query --id 5, {args.events:,} events", [str(events_map), "--id", "5"], "query"),
         (f"info, {args.events:,} events", [str(events_map)], "info"),
         (f"query --removed, {args.events:,} events", [str(events_map), "--removed"], "query"),
+        ("render 4 frames of sample_data/lap1, 100k objects",
+         [str(objects_map), "-o", str(tmp / "frames.png"), "--recording", str(ROOT / "sample_data" / "lap1"),
+          "--scale", "0.5"], "render"),
     ]
     print("CPU s (user + system), wall s, max RSS MiB of each command")
     for label, rest, command in runs:

@@ -129,6 +129,7 @@ def render_cmd(ctx, map_path, output, ground_truth, width, height, labels, show_
 
 def _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts) -> None:
     from ltc_cli.cli import reader_options
+    from ltc_cli.config import load_config
     from ltc_cli.map.render_frames import default_frames, frame_sheet
     from ltc_cli.map.store import load_map
     from ltc_cli.recordings.open import open_recording
@@ -152,11 +153,15 @@ def _render_frames(map_path, output, recording, frame_list, columns, scale, ids,
     missing = sorted(set(ids) - {int(r) + 1 for r in smap.active_rows()})
     if missing:
         raise click.BadParameter(f"object {missing[0]} is not in the map (or was removed)", param_hint="--id")
+    # Boxes as far as the depth reaches: beyond it they stand behind walls, and a big map's far
+    # rooms would bury the frame (a recording's own range, else the settings' default).
+    max_depth = rec.depth_range[1] if rec.depth_range else load_config(None)["modeling"]["max_depth"]
     res = frame_sheet(smap, rec, indices, output, columns=columns, scale=scale, ids=set(ids) or None,
-                      on_skip=lambda i, exc: click.echo(f"warning: frame {i} skipped: {exc}", err=True))
+                      on_skip=lambda i, exc: click.echo(f"warning: frame {i} skipped: {exc}", err=True),
+                      max_depth=max_depth)
     shown = len(ids) if ids else len(smap.active_rows())
     click.echo(f"{output}: {res.width}x{res.height} px, {plural(len(res.frames), 'frame')} of {recording}, "
-               f"{plural(shown, 'object')} ({res.in_view} in view)")
+               f"{plural(shown, 'object')} ({res.in_view} in view within {max_depth:g} m)")
 
 
 @cli.command("changes")

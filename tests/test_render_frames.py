@@ -12,10 +12,11 @@ from click.testing import CliRunner
 from PIL import Image
 
 from ltc_cli.cli import cli
-from ltc_cli.geometry.camera import invert_pose
+from ltc_cli.geometry.boxes import box_corners
+from ltc_cli.geometry.camera import invert_pose, transform
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.render_frames import (FRAME_PALETTE, NEAR, clipped_edges, default_frames, draw_boxes, frame_sheet,
-                                       map_boxes, recording_to_map)
+                                       in_frustum, map_boxes, project_points, recording_to_map)
 from ltc_cli.map.store import save_map
 from ltc_cli.recordings.open import open_recording
 from ltc_cli.recordings.writer import RecordingWriter
@@ -65,6 +66,33 @@ def test_a_box_is_drawn_where_the_camera_sees_it():
         assert img[v - 1:v + 2, u, 0].max() > 200 and img[v - 1:v + 2, u, 1].max() < 100, (u, v)
     assert not img[230:251, 300:341].any()  # nothing inside the faces
     assert not img[:, :200].any() and not img[:, 440:].any()  # nothing beside the box, nothing green
+
+
+def test_the_frustum_keeps_every_box_with_an_edge_in_view():
+    """2,000 boxes at random around the camera: each one whose clipped edges reach into the image
+    (cv2.clipLine, as drawn) passes in_frustum; most of the others do not; beyond max_depth none."""
+    import cv2
+
+    rng = np.random.default_rng(3)
+    n = 2000
+    centers = np.c_[rng.uniform(-6, 6, (n, 2)), rng.uniform(-1, 3, n)]
+    sizes = rng.uniform(0.05, 2.0, (n, 3))
+    yaws = rng.uniform(-np.pi / 2, np.pi / 2, n)
+    T_camera_map = invert_pose(T_MAP_CAMERA)
+    keep = in_frustum(centers, sizes, T_camera_map, INTR, 640, 480)
+    visible = np.zeros(n, bool)
+    for k in range(n):
+        corners = transform(T_camera_map, box_corners(centers[k], yaws[k], sizes[k]))
+        for p, q in project_points(clipped_edges(corners), INTR):
+            if cv2.clipLine((0, 0, 640, 480), tuple(int(round(x)) for x in p), tuple(int(round(x)) for x in q))[0]:
+                visible[k] = True
+                break
+    assert visible.sum() > 200 and (keep[visible]).all()
+    assert keep[~visible].mean() < 0.5  # a sphere test: boxes beside the view's corners pass
+    near = in_frustum(centers, sizes, T_camera_map, INTR, 640, 480, max_depth=3.0)
+    depth = transform(T_camera_map, centers)[:, 2]
+    assert not near[depth - 0.5 * np.linalg.norm(sizes, axis=1) > 3.0].any()
+    assert near[visible & (depth + 0.5 * np.linalg.norm(sizes, axis=1) < 3.0)].all()
 
 
 def test_the_map_frame_comes_from_the_session_that_ingested_the_recording():
@@ -134,12 +162,12 @@ def test_cli_render_into_frames(scene, tmp_path):
     out = tmp_path / "s.png"
     r = CliRunner().invoke(cli, ["render", str(m), "-o", str(out), "--recording", str(rec), "--scale", "0.5"])
     assert r.exit_code == 0, r.output
-    assert r.stdout.strip() == f"{out}: 640x240 px, 2 frames of {rec}, 2 objects (2 in view)"
+    assert r.stdout.strip() == f"{out}: 640x240 px, 2 frames of {rec}, 2 objects (2 in view within 6 m)"
     with Image.open(out) as im:
         assert im.size == (640, 240)
     r = CliRunner().invoke(cli, ["render", str(m), "-o", str(out), "--recording", str(rec), "--frames", "1",
                                  "--id", "2"])
-    assert r.exit_code == 0 and "1 frame of" in r.stdout and "1 object (1 in view)" in r.stdout, r.output
+    assert r.exit_code == 0 and "1 frame of" in r.stdout and "1 object (1 in view within 6 m)" in r.stdout, r.output
     # A frame named twice is drawn once.
     r = CliRunner().invoke(cli, ["render", str(m), "-o", str(out), "--recording", str(rec), "--frames", "1,0,1"])
     assert r.exit_code == 0 and "2 frames of" in r.stdout, r.output

@@ -86,16 +86,36 @@ class SheetResult:
     in_view: int  # objects drawn into at least one of them
 
 
-def draw_boxes(image_rgb: np.ndarray, boxes: list, T_camera_map: np.ndarray, intr,
-               labels: bool = True) -> tuple[np.ndarray, set]:
+def in_frustum(centers: np.ndarray, sizes: np.ndarray, T_camera_map: np.ndarray, intr, width: int, height: int,
+               max_depth: float = np.inf) -> np.ndarray:
+    """(N,) bool: whether each box (centres (N, 3), sizes (N, 3)) may be in the camera's view, up to
+    ``max_depth``: its bounding sphere reaches in front of the near plane, no further than
+    ``max_depth``, and inside the four planes through the camera and the image's sides. Never
+    false for a box with a point in view; a box beside a corner of the view may pass."""
+    p = transform(T_camera_map, np.asarray(centers, dtype=np.float64))
+    r = 0.5 * np.linalg.norm(sizes, axis=1)
+    sides = np.array([[1.0, 0.0, intr.cx / intr.fx], [-1.0, 0.0, (width - intr.cx) / intr.fx],
+                      [0.0, 1.0, intr.cy / intr.fy], [0.0, -1.0, (height - intr.cy) / intr.fy]])
+    sides /= np.linalg.norm(sides, axis=1, keepdims=True)
+    inside = (p @ sides.T >= -r[:, None]).all(axis=1)
+    return inside & (p[:, 2] + r >= NEAR) & (p[:, 2] - r <= max_depth)
+
+
+def draw_boxes(image_rgb: np.ndarray, boxes: list, T_camera_map: np.ndarray, intr, labels: bool = True,
+               max_depth: float = np.inf) -> tuple[np.ndarray, set]:
     """A copy of ``image_rgb`` (H, W, 3) with each box of ``boxes`` (id, label, rgb 0-1, center (3,),
-    yaw, size (3,)) drawn as its clipped edges and (``labels``) labelled "id label" at its highest
-    corner in the image; and the ids of the boxes with an edge in the image."""
+    yaw, size (3,)) within ``max_depth`` of the camera drawn as its clipped edges and (``labels``)
+    labelled "id label" at its highest corner in the image; and the ids of the boxes with an edge
+    in the image."""
     import cv2
 
     img = np.ascontiguousarray(image_rgb.copy())
     h, w = img.shape[:2]
     seen = set()
+    if boxes:
+        keep = in_frustum(np.array([b[3] for b in boxes]), np.array([b[5] for b in boxes]), T_camera_map, intr, w, h,
+                          max_depth)
+        boxes = [b for b, k in zip(boxes, keep) if k]
     for oid, label, rgb, center, yaw, size in boxes:
         corners = transform(T_camera_map, box_corners(np.asarray(center), float(yaw), np.asarray(size)))
         segments = clipped_edges(corners)
@@ -142,10 +162,11 @@ def map_boxes(smap: SemanticMap, ids=None) -> list:
 
 
 def frame_sheet(smap: SemanticMap, recording, indices: list[int], out_path, columns: int = 2, scale: float = 1.0,
-                ids=None, on_skip=None) -> SheetResult:
-    """Draw the map's boxes into the frames ``indices`` of ``recording`` and write them as one
-    picture, ``columns`` frames a row, each scaled by ``scale``. A frame that cannot be read is
-    passed to ``on_skip(index, FrameError)`` and left out; RenderError when none can be."""
+                ids=None, on_skip=None, max_depth: float = np.inf) -> SheetResult:
+    """Draw the map's boxes within ``max_depth`` of each camera into the frames ``indices`` of
+    ``recording`` and write them as one picture, ``columns`` frames a row, each scaled by ``scale``.
+    A frame that cannot be read is passed to ``on_skip(index, FrameError)`` and left out;
+    RenderError when none can be."""
     import cv2
     from PIL import Image
 
@@ -164,7 +185,7 @@ def frame_sheet(smap: SemanticMap, recording, indices: list[int], out_path, colu
         if rgb is None:
             rgb = np.zeros(frame.depth_m.shape + (3,), np.uint8)  # a depth-only recording: boxes on black
         T_camera_map = invert_pose(T_map_world @ frame.T_world_camera)
-        img, seen = draw_boxes(rgb, boxes, T_camera_map, frame.intrinsics)
+        img, seen = draw_boxes(rgb, boxes, T_camera_map, frame.intrinsics, max_depth=max_depth)
         in_view |= seen
         cv2.putText(img, f"frame {frame.key}", (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 4, cv2.LINE_AA)
         cv2.putText(img, f"frame {frame.key}", (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
