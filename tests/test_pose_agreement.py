@@ -144,3 +144,21 @@ def test_an_unknown_convention_is_one_line(recordings, tmp_path):
     assert r.exit_code == 1 and len(lines) == 1, r.output
     assert "pose_convention=sideways" in lines[0] and "inverted, opengl, x-forward, w-first" in lines[0]
     assert not (tmp_path / "m.h5").exists()
+
+
+def test_the_frames_the_check_reads_are_handed_to_the_ingest():
+    """Each partner frame is decoded once: the ingest's next load of it returns the frame the check
+    read (the same depth array), and the load after that reads it anew."""
+    from ltc_cli.ingest.pose_check import frame_pairs
+    from ltc_cli.ingest.sampling import sample_frames_of
+
+    rec = open_recording(SAMPLE)
+    frames = sample_frames_of(rec, 6)  # positions 0, 15, 30, 45, 60, 75 of its 76
+    pairs = frame_pairs(rec, frames, n=6)  # a pair for each, in the recording's order
+    assert len(pairs) == 6
+    positions = {f.key: k for k, f in enumerate(rec.frames)}
+    for (_, depth_b, *_), a in zip(pairs, sorted(frames, key=lambda f: positions[f.key])):
+        j = positions[a.key] + 1 if positions[a.key] + 1 < len(rec.frames) else positions[a.key] - 1
+        first = rec.frames[j].load()
+        assert first.depth_m is depth_b
+        assert rec.frames[j].load().depth_m is not depth_b

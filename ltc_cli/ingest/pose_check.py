@@ -18,7 +18,8 @@ def frame_pairs(rec, frames: list, n: int = PAIRS) -> list:
     position = {ref.key: k for k, ref in enumerate(rec.frames)}
     loaded = {position[f.key]: f for f in frames if f.key in position}
     chosen = sorted(loaded)
-    picks = sorted({round(k * (len(chosen) - 1) / max(n - 1, 1)) for k in range(min(n, len(chosen)))})
+    m = min(n, len(chosen))
+    picks = sorted({round(k * (len(chosen) - 1) / max(m - 1, 1)) for k in range(m)})
     out = []
     for i in (chosen[k] for k in picks):
         j = i + 1 if i + 1 < len(rec.frames) else i - 1
