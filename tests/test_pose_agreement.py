@@ -137,6 +137,16 @@ def test_ingest_warns_once_and_the_reader_option_reads_them_right(recordings, tm
     assert recs != [open_recording(recordings["inverted"]).identity]
 
 
+def test_a_convention_given_where_the_poses_were_right_is_named(recordings, tmp_path):
+    """Right poses read as world-to-camera: inverting them once more would fit, and the warning
+    says to try without the option rather than to give it again."""
+    r = CliRunner().invoke(cli, ["ingest", str(recordings["right"]), "--map", str(tmp_path / "m.h5"),
+                                 "-r", "pose_convention=inverted"])
+    warnings = [ln for ln in r.stderr.splitlines() if ln.startswith("warning:")]
+    assert r.exit_code == 0 and len(warnings) == 1, r.output
+    assert "read with -r pose_convention=inverted" in warnings[0] and "without -r pose_convention" in warnings[0]
+
+
 def test_an_unknown_convention_is_one_line(recordings, tmp_path):
     r = CliRunner().invoke(cli, ["ingest", str(recordings["right"]), "--map", str(tmp_path / "m.h5"),
                                  "-r", "pose_convention=sideways"])

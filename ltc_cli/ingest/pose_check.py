@@ -39,6 +39,12 @@ def pose_warning(rec, frames: list) -> str | None:
     if verdict is None:
         return None
     given = verdict.agree["as given"]
+    applied = rec.meta.get("pose_convention")
+    if verdict.better is not None and applied:
+        return (f"{rec.path}: read with -r pose_convention={applied}, its poses still do not fit its depth (consecutive "
+                f"frames agree on {given:.0%} of depth readings, {verdict.agree[verdict.better]:.0%} with the poses "
+                f"so read and then as {READINGS[verdict.better][0]}): try it without -r pose_convention, or "
+                f"with another")
     if verdict.better is not None:
         what, _ = READINGS[verdict.better]
         return (f"{rec.path}: its poses look like {what}: read so, consecutive frames agree "

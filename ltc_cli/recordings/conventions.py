@@ -28,4 +28,5 @@ def read_poses_as(rec: Recording, name) -> Recording:
                              f"{', '.join(READINGS)})", rec.path)
     fn = READINGS[name][1]
     frames = [FrameRef(ref.key, ref.index, _converted(ref.load, fn)) for ref in rec.frames]
-    return replace(rec, frames=frames, identity=f"{rec.identity}+poses={name}")
+    return replace(rec, frames=frames, identity=f"{rec.identity}+poses={name}",
+                   meta={**rec.meta, "pose_convention": name})
