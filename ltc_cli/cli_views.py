@@ -69,7 +69,8 @@ def export_cmd(map_path, fmt, output, origin):
 @click.argument("map_path", type=click.Path())
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The PNG to write.")
 @click.option("--ground-truth", "ground_truth", type=click.Path(), metavar="FILE|RECORDING",
-              help="ground_truth.json, or a recording folder holding one: drawn beneath as dashed outlines.")
+              help="ground_truth.json, or a recording folder holding one: drawn beneath as dashed outlines "
+                   "(with --recording: thin grey boxes).")
 @click.option("--width", default=1200, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
 @click.option("--height", default=900, show_default=True, type=click.IntRange(100, 16384), help="Pixels.")
 @click.option("--labels/--no-labels", default=None, help="Label objects 'class #id' (default: when at most 300).")
@@ -105,11 +106,11 @@ def render_cmd(ctx, map_path, output, ground_truth, width, height, labels, show_
                                "scale", "ids", "reader", "reader_opts")
              if ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE}
     if recording is not None:
-        top_down = sorted(given & {"ground_truth", "width", "height", "labels", "show_changes"})
+        top_down = sorted(given & {"width", "height", "labels", "show_changes"})
         if top_down:
             raise click.UsageError(f"--{top_down[0].replace('_', '-').replace('show-', '')} draws the top-down "
                                    "picture; it does not go with --recording")
-        _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts)
+        _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts, ground_truth)
         return
     framed = sorted(given & {"frame_list", "columns", "scale", "ids", "reader", "reader_opts"})
     if framed:
@@ -127,9 +128,11 @@ def render_cmd(ctx, map_path, output, ground_truth, width, height, labels, show_
     click.echo(f"{output}: {res.width}x{res.height} px{fmt}, {plural(res.objects, 'object')}{extra}")
 
 
-def _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts) -> None:
+def _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts,
+                   ground_truth) -> None:
     from ltc_cli.cli import reader_options
     from ltc_cli.config import load_config
+    from ltc_cli.map.render import load_ground_truth
     from ltc_cli.map.render_frames import default_frames, frame_sheet
     from ltc_cli.map.store import load_map
     from ltc_cli.recordings.open import open_recording
@@ -156,12 +159,14 @@ def _render_frames(map_path, output, recording, frame_list, columns, scale, ids,
     # Boxes as far as the depth reaches: beyond it they stand behind walls, and a big map's far
     # rooms would bury the frame (a recording's own range, else the settings' default).
     max_depth = rec.depth_range[1] if rec.depth_range else load_config(None)["modeling"]["max_depth"]
+    truth = load_ground_truth(ground_truth) if ground_truth else None
     res = frame_sheet(smap, rec, indices, output, columns=columns, scale=scale, ids=set(ids) or None,
                       on_skip=lambda i, exc: click.echo(f"warning: frame {i} skipped: {exc}", err=True),
-                      max_depth=max_depth)
+                      max_depth=max_depth, truth=truth)
     shown = len(ids) if ids else len(smap.active_rows())
     click.echo(f"{output}: {res.width}x{res.height} px, {plural(len(res.frames), 'frame')} of {recording}, "
-               f"{plural(shown, 'object')} ({res.in_view} in view within {max_depth:g} m)")
+               f"{plural(shown, 'object')} ({res.in_view} in view within {max_depth:g} m)"
+               + (f", {plural(len(truth), 'ground-truth box')} beneath" if truth is not None else ""))
 
 
 @cli.command("changes")

@@ -157,6 +157,24 @@ def test_frame_sheet_lays_out_the_frames(scene, tmp_path):
     assert [b[0] for b in map_boxes(smap, {2})] == [2]
 
 
+def test_ground_truth_is_drawn_beneath_thin_and_grey(scene, tmp_path):
+    """A true cup 0.5 m left of the mapped one: its near face's top side runs at v = 240 - 500 *
+    0.2 / 1.8 = 184.4 from u = 320 + 500 * 0.3 / 1.8 = 403.3 to 320 + 500 * 0.7 / 1.8 = 514.4."""
+    m, rec, smap = scene
+    truth = [{"id": 1, "class": "cup", "center": [2.0, -0.5, 1.0], "yaw": 0.0, "size": [0.4, 0.4, 0.4]}]
+    out = tmp_path / "gt.png"
+    frame_sheet(smap, open_recording(rec), [0], out, columns=1, truth=truth)
+    img = np.asarray(Image.open(out).convert("RGB")).astype(int)
+    edge = img[183:187, 458]
+    assert edge.max() > 150 and np.ptp(edge[edge[:, 0].argmax()]) < 10  # light grey
+    assert np.abs(img[240, 458] - 90).max() < 5  # inside the face: the frame as it was
+    (rec / "ground_truth.json").write_text(json.dumps({"format": "ltc-ground-truth/1", "lap": 1,
+                                                        "objects": truth, "changes": {}}))
+    r = CliRunner().invoke(cli, ["render", str(m), "-o", str(out), "--recording", str(rec), "--ground-truth",
+                                 str(rec), "--frames", "0"])
+    assert r.exit_code == 0 and r.stdout.strip().endswith(", 1 ground-truth box beneath"), r.output
+
+
 def test_cli_render_into_frames(scene, tmp_path):
     m, rec, _ = scene
     out = tmp_path / "s.png"

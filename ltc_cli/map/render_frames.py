@@ -28,6 +28,8 @@ from ltc_cli.map.render import RenderError, picture_format
 EDGES = np.array([(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7)])
 #: Edges are cut this far (m) in front of the camera: nearer, a projection runs off to infinity.
 NEAR = 0.05
+#: Ground-truth boxes: thin and light grey, beneath the map's.
+TRUTH_RGB = (0.82, 0.82, 0.82)
 #: Saturated colours that stand out on a photograph (the top-down picture's palette is made for
 #: white paper, and its tv, keyboard and mouse are three purples on a dark desk). RGB in [0, 1].
 FRAME_PALETTE = ((1.0, 0.25, 0.25), (0.25, 0.63, 1.0), (0.25, 1.0, 0.25), (1.0, 0.8, 0.0), (1.0, 0.0, 1.0),
@@ -102,11 +104,11 @@ def in_frustum(centers: np.ndarray, sizes: np.ndarray, T_camera_map: np.ndarray,
 
 
 def draw_boxes(image_rgb: np.ndarray, boxes: list, T_camera_map: np.ndarray, intr, labels: bool = True,
-               max_depth: float = np.inf) -> tuple[np.ndarray, set]:
+               max_depth: float = np.inf, thickness: int = 2) -> tuple[np.ndarray, set]:
     """A copy of ``image_rgb`` (H, W, 3) with each box of ``boxes`` (id, label, rgb 0-1, center (3,),
-    yaw, size (3,)) within ``max_depth`` of the camera drawn as its clipped edges and (``labels``)
-    labelled "id label" at its highest corner in the image; and the ids of the boxes with an edge
-    in the image."""
+    yaw, size (3,)) within ``max_depth`` of the camera drawn as its clipped edges (``thickness``
+    px) and (``labels``) labelled "id label" at its highest corner in the image; and the ids of the
+    boxes with an edge in the image."""
     import cv2
 
     img = np.ascontiguousarray(image_rgb.copy())
@@ -126,7 +128,7 @@ def draw_boxes(image_rgb: np.ndarray, boxes: list, T_camera_map: np.ndarray, int
         for p, q in project_points(segments, intr):
             ok, p1, p2 = cv2.clipLine((0, 0, w, h), tuple(int(round(x)) for x in p), tuple(int(round(x)) for x in q))
             if ok:
-                cv2.line(img, p1, p2, colour, 2, cv2.LINE_AA)
+                cv2.line(img, p1, p2, colour, thickness, cv2.LINE_AA)
                 drawn = True
         if not drawn:
             continue
@@ -162,10 +164,11 @@ def map_boxes(smap: SemanticMap, ids=None) -> list:
 
 
 def frame_sheet(smap: SemanticMap, recording, indices: list[int], out_path, columns: int = 2, scale: float = 1.0,
-                ids=None, on_skip=None, max_depth: float = np.inf) -> SheetResult:
+                ids=None, on_skip=None, max_depth: float = np.inf, truth: list | None = None) -> SheetResult:
     """Draw the map's boxes within ``max_depth`` of each camera into the frames ``indices`` of
-    ``recording`` and write them as one picture, ``columns`` frames a row, each scaled by ``scale``.
-    A frame that cannot be read is passed to ``on_skip(index, FrameError)`` and left out;
+    ``recording`` and write them as one picture, ``columns`` frames a row, each scaled by ``scale``;
+    ``truth`` (ground-truth objects: class, center, yaw, size, in the map frame) beneath them, thin
+    and grey. A frame that cannot be read is passed to ``on_skip(index, FrameError)`` and left out;
     RenderError when none can be."""
     import cv2
     from PIL import Image
@@ -173,6 +176,8 @@ def frame_sheet(smap: SemanticMap, recording, indices: list[int], out_path, colu
     fmt = picture_format(out_path)
     T_map_world = recording_to_map(smap, recording)
     boxes = map_boxes(smap, ids)
+    truth_boxes = [(int(o.get("id", 0)), o["class"], TRUTH_RGB, np.asarray(o["center"], np.float64), float(o["yaw"]),
+                    np.asarray(o["size"], np.float64)) for o in truth or []]
     tiles, keys, in_view = [], [], set()
     for i in indices:
         try:
@@ -185,6 +190,9 @@ def frame_sheet(smap: SemanticMap, recording, indices: list[int], out_path, colu
         if rgb is None:
             rgb = np.zeros(frame.depth_m.shape + (3,), np.uint8)  # a depth-only recording: boxes on black
         T_camera_map = invert_pose(T_map_world @ frame.T_world_camera)
+        if truth_boxes:
+            rgb, _ = draw_boxes(rgb, truth_boxes, T_camera_map, frame.intrinsics, labels=False, max_depth=max_depth,
+                                thickness=1)
         img, seen = draw_boxes(rgb, boxes, T_camera_map, frame.intrinsics, max_depth=max_depth)
         in_view |= seen
         cv2.putText(img, f"frame {frame.key}", (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 4, cv2.LINE_AA)
