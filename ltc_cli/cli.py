@@ -249,13 +249,13 @@ def info(map_path, fmt):
         click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped){visit}  "
                    f"{s['detector']}/{s['metric']}/{s['policy']} v_other="
                    f"{'learnt per class' if s['v_other_learnt'] else format(s['v_other'], '.3g')}  {', '.join(s['sources'])}")
-        for cam in dict.fromkeys(_camera_text(c) for c in s["cameras"]):  # each camera once, in order
+        for cam in dict.fromkeys(camera_text(c) for c in s["cameras"]):  # each camera once, in order
             click.echo(f"     camera {cam}")
     click.echo(f"{map_path}: {_plural(o['active'], 'object')} of {_plural(len(per_class), 'class')} from "
                f"{_plural(len(smap.frame_keys), 'frame')} in {_plural(len(smap.sessions), 'session')}")
 
 
-def _camera_text(c: dict) -> str:
+def camera_text(c: dict) -> str:
     """A session's camera (ingest's camera_record) as one line of ``ltc info``."""
     named = f"  (calibration: {c['camera']})" if c.get("camera") else ""
     noise = f", depth noise {c['depth_noise']:.2g} m at 1 m (measured)" if c.get("depth_noise") is not None else ""

@@ -1,5 +1,6 @@
 """The ``ltc`` commands of the tools around the mapper: ``simulate`` (synthetic recordings),
-``evaluate`` (a map against ground truth) and ``calibrate`` (a detector's measured response).
+``evaluate`` (a map against ground truth), ``calibrate`` (a detector's measured response) and
+``check`` (what an ingest would take from a recording).
 
 Part of the command line (with :mod:`ltc_cli.cli`, whose group they join): the only other code that
 prints. Library errors reach the user as one line through the group's handler.
@@ -150,3 +151,48 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
         f"recall {_fmt(doc['recall'], '.2f')} (any class {_fmt(doc['detection_rate'], '.2f')}), "
         f"precision {_fmt(doc['precision'], '.2f')}, v_other {doc['v_other']:.2f}"
     )
+
+
+@cli.command("check")
+@click.argument("recording", type=click.Path())
+@click.option("--format", "reader", help="Recording reader (default: detected).")
+@click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=READER_OPTION_HELP)
+@click.option("--json", "as_json", is_flag=True, help="Print it as JSON.")
+def check_cmd(recording, reader, reader_opts, as_json):
+    """Say what an ingest would take from RECORDING, without mapping it: the camera, the depth range
+    and error, the up axis and floor, and whether its poses fit its depth (a few frames are read;
+    nothing is written)."""
+    from ltc_cli.cli import camera_text
+    from ltc_cli.ingest.recording_check import check_recording
+    from ltc_cli.recordings.open import open_recording
+
+    warnings: list = []
+
+    def warn(message):
+        warnings.append(message)
+        warn_line(message)
+
+    doc = check_recording(open_recording(recording, reader, reader_options(reader_opts)), warn=warn)
+    doc["warnings"] = warnings
+    if as_json:
+        click.echo(json.dumps(doc, indent=2))
+    else:
+        up, poses = doc["up"], doc["poses"]
+        x, y, z = up["direction"]
+        m_cfg = load_config(None)["modeling"]
+        depth = (f"{doc['depth_range'][0]:g}-{doc['depth_range'][1]:g} m (the recording's range)"
+                 if doc["depth_range"] else f"{m_cfg['min_depth']:g}-{m_cfg['max_depth']:g} m (the settings' "
+                                            "modeling.min_depth and max_depth)")
+        click.echo(f"recording    {doc['recording']}  ({doc['reader']}, {plural(doc['frames'], 'frame')})")
+        click.echo(f"camera       {camera_text(doc['camera'])}")
+        click.echo(f"depth        {depth}")
+        click.echo(f"up           {up['how']}: map +z = the recording's ({x:.3f}, {y:.3f}, {z:.3f}), "
+                   f"{up['tilt_deg']:.1f} deg from its +z")
+        click.echo(f"floor        " + (f"z = {doc['floor_z']:.3f} m in the map frame" if doc["floor_z"] is not None
+                                       else "not in view of the sampled frames"))
+        if poses is not None:
+            others = ", ".join(f"{k} {v:.0%}" for k, v in poses["agree"].items() if k != "as given")
+            click.echo(f"poses        {poses['agree']['as given']:.0%} of depth readings within "
+                       f"{poses['tolerance_m'] * 100:.0f} cm of the next frame's as read; read {others}")
+    verdict = f"{plural(len(warnings), 'warning')} (above)" if warnings else "ready to ingest"
+    click.echo(f"{recording}: {verdict}", err=as_json)

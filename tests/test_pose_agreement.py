@@ -147,6 +147,30 @@ def test_a_convention_given_where_the_poses_were_right_is_named(recordings, tmp_
     assert "read with -r pose_convention=inverted" in warnings[0] and "without -r pose_convention" in warnings[0]
 
 
+def test_check_says_what_an_ingest_takes_and_writes_nothing(recordings):
+    before = sorted(p.name for p in recordings["right"].rglob("*"))
+    r = CliRunner().invoke(cli, ["check", str(recordings["right"])])
+    assert r.exit_code == 0 and not r.stderr, r.output
+    *table, summary = r.stdout.splitlines()
+    assert summary == f"{recordings['right']}: ready to ingest"
+    lines = dict(ln.split(None, 1) for ln in table)
+    assert lines["camera"].startswith("320 x 240, fx 262.5 fy 262.5 cx 159.5 cy 119.5")
+    assert lines["depth"].startswith("0.3-6 m") and lines["floor"].startswith("z = 0.00")
+    assert lines["up"].startswith("z: map +z = the recording's (0.000, 0.000, 1.000)")
+    assert lines["poses"].startswith(tuple(f"{p}% of depth readings within 5 cm" for p in range(50, 100)))
+    doc = json.loads(CliRunner().invoke(cli, ["check", str(recordings["inverted"]), "--json"]).stdout)
+    agree = doc["poses"]["agree"]
+    assert doc["poses"]["better"] == "inverted" and agree["inverted"] > 0.5 > agree["as given"]
+    assert len(doc["warnings"]) == 1 and doc["warnings"][0] == doc["poses"]["message"]
+    assert doc["warnings"][0].endswith("-r pose_convention=inverted")
+    r = CliRunner().invoke(cli, ["check", str(recordings["inverted"])])
+    assert r.exit_code == 0 and r.stdout.splitlines()[-1] == f"{recordings['inverted']}: 1 warning (above)"
+    assert r.stderr.startswith("warning: ") and len(r.stderr.splitlines()) == 1
+    assert sorted(p.name for p in recordings["right"].rglob("*")) == before
+    r = CliRunner().invoke(cli, ["check", str(recordings["right"] / "missing")])
+    assert r.exit_code == 1 and "recording does not exist" in r.stderr and "Traceback" not in r.output
+
+
 def test_an_unknown_convention_is_one_line(recordings, tmp_path):
     r = CliRunner().invoke(cli, ["ingest", str(recordings["right"]), "--map", str(tmp_path / "m.h5"),
                                  "-r", "pose_convention=sideways"])

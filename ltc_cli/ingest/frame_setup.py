@@ -30,7 +30,8 @@ import numpy as np
 from ltc_cli.errors import RecordingError
 from ltc_cli.geometry.camera import backproject, rotation_between, transform
 from ltc_cli.geometry.depth_noise import estimate_depth_noise
-from ltc_cli.ingest.pose_check import pose_warning
+from ltc_cli.geometry.pose_agreement import judge_poses
+from ltc_cli.ingest.pose_check import frame_pairs, pose_message
 from ltc_cli.ingest.sampling import sample_frames_of
 from ltc_cli.types import Recording
 
@@ -344,7 +345,7 @@ class FrameSetup(NamedTuple):
     depth_noise: float | None  # the sensor's depth error std at 1 m, measured; None when not
 
 
-def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None) -> FrameSetup:
+def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None, on_poses=None) -> FrameSetup:
     """The up rotation, floor height and depth error of a recording (:class:`FrameSetup`).
 
     R_up turns the recording's world into the z-up map frame (given, or estimated from the
@@ -353,7 +354,7 @@ def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None)
     same frames (ltc_cli/geometry/depth_noise.py). ``warn(message)`` is told when
     an estimate found no horizontal plane and rests on the cameras alone (a map tilted by the
     cameras' mean pitch is then likely), and when the poses do not fit the depth
-    (ltc_cli/ingest/pose_check.py).
+    (ltc_cli/ingest/pose_check.py); ``on_poses(verdict)`` gets that check's PoseVerdict.
     """
     estimating = isinstance(rec.up, str) and rec.up == "estimate"
     if sample_frames is None:
@@ -374,8 +375,12 @@ def frame_setup_for(rec: Recording, sample_frames: int | None = None, warn=None)
                  f"shows the axis), give it (-r up=z, or up: in recording.yaml)")
     else:
         R_up = rotation_between(np.asarray(rec.up, dtype=np.float64), [0.0, 0.0, 1.0])
-    if warn is not None and (message := pose_warning(rec, frames)):
-        warn(message)
+    if warn is not None or on_poses is not None:
+        verdict = judge_poses(frame_pairs(rec, frames))
+        if on_poses is not None:
+            on_poses(verdict)
+        if warn is not None and (message := pose_message(rec, verdict)):
+            warn(message)
     zs = []
     for f in frames:
         v, u = np.mgrid[4 : f.depth_m.shape[0] : 8, 4 : f.depth_m.shape[1] : 8]

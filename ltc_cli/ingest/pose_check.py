@@ -33,16 +33,15 @@ def frame_pairs(rec, frames: list, n: int = PAIRS) -> list:
     return out
 
 
-def pose_warning(rec, frames: list) -> str | None:
-    """One line on what the recording's poses look like when they do not fit its depth, else None."""
-    verdict = judge_poses(frame_pairs(rec, frames))
+def pose_message(rec, verdict) -> str | None:
+    """The warning line for ``verdict`` (geometry.pose_agreement.PoseVerdict, or None), else None."""
     if verdict is None:
         return None
     given = verdict.agree["as given"]
     applied = rec.meta.get("pose_convention")
     if verdict.better is not None and applied:
-        return (f"{rec.path}: read with -r pose_convention={applied}, its poses still do not fit its depth (consecutive "
-                f"frames agree on {given:.0%} of depth readings, {verdict.agree[verdict.better]:.0%} with the poses "
+        return (f"{rec.path}: read with -r pose_convention={applied}, its poses still do not fit its depth "
+                f"(consecutive frames agree on {given:.0%} of depth readings, {verdict.agree[verdict.better]:.0%} with the poses "
                 f"so read and then as {READINGS[verdict.better][0]}): try it without -r pose_convention, or "
                 f"with another")
     if verdict.better is not None:
