@@ -5,7 +5,7 @@ nonsense without any error; this says which convention they look like before any
 
 from __future__ import annotations
 
-from ltc_cli.geometry.pose_agreement import READINGS, TOLERANCE, judge_poses
+from ltc_cli.geometry.pose_agreement import READINGS, TOLERANCE
 from ltc_cli.ingest.sampling import load_kept
 
 #: Pairs of consecutive frames compared: each a frame the set-up read anyway and the one after it.
@@ -40,10 +40,10 @@ def pose_message(rec, verdict) -> str | None:
     given = verdict.agree["as given"]
     applied = rec.meta.get("pose_convention")
     if verdict.better is not None and applied:
+        better = verdict.agree[verdict.better]
         return (f"{rec.path}: read with -r pose_convention={applied}, its poses still do not fit its depth "
-                f"(consecutive frames agree on {given:.0%} of depth readings, {verdict.agree[verdict.better]:.0%} with the poses "
-                f"so read and then as {READINGS[verdict.better][0]}): try it without -r pose_convention, or "
-                f"with another")
+                f"(consecutive frames agree on {given:.0%} of depth readings, {better:.0%} with the poses so read "
+                f"and then as {READINGS[verdict.better][0]}): try it without -r pose_convention, or with another")
     if verdict.better is not None:
         what, _ = READINGS[verdict.better]
         return (f"{rec.path}: its poses look like {what}: read so, consecutive frames agree "
