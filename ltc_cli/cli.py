@@ -142,6 +142,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
     why = f" ({skipped_breakdown(summary.skipped_reasons)})" if summary.skipped_reasons else ""
     line = (
         f"{map_path}: {_plural(summary.frames_done, 'frame')} ingested, {summary.frames_skipped} skipped{why}, "
+        f"{f'{summary.frames_still} still (the camera had not moved), ' if summary.frames_still else ''}"
         f"{summary.frames_already} already in the map; objects {summary.created} created, "
         f"{summary.merged} merged, {summary.removed} removed; {summary.objects} in the map; "
         f"{visit}{summary.seconds:.1f} s"
@@ -219,8 +220,9 @@ def info(map_path, fmt):
         "frames": len(smap.frame_keys),
         "events": smap.n_events,
         "sessions": [
-            {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped", "v_other")}
-            | {"visit": max(1, int(s.get("visit") or 0)), "v_other_learnt": _learnt_rate(s)}
+            {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped",
+                               "v_other")}
+            | {"frames_still": int(s.get("frames_still") or 0)} | {"visit": max(1, int(s.get("visit") or 0)), "v_other_learnt": _learnt_rate(s)}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
             | {"cameras": json.loads(s.get("cameras") or "[]")}
             for s in smap.sessions
@@ -246,7 +248,9 @@ def info(map_path, fmt):
     click.echo(f"sessions     {len(smap.sessions)}")
     for i, s in enumerate(doc["sessions"]):
         visit = f"  visit {s['visit']}" if s["visit"] > 1 else ""
-        click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped){visit}  "
+        still = f", {s['frames_still']} still" if s.get("frames_still") else ""
+        click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped"
+                   f"{still}){visit}  "
                    f"{s['detector']}/{s['metric']}/{s['policy']} v_other="
                    f"{'learnt per class' if s['v_other_learnt'] else format(s['v_other'], '.3g')}  {', '.join(s['sources'])}")
         for cam in dict.fromkeys(camera_text(c) for c in s["cameras"]):  # each camera once, in order

@@ -175,6 +175,11 @@ class MaintenanceSettings(TypedDict):
     depth_tolerance: float
 
 
+class FrameSettings(TypedDict):
+    still_move: Optional[float]
+    still_turn: Optional[float]
+
+
 class IndexSettings(TypedDict):
     cell_size: float
 
@@ -194,6 +199,7 @@ class Settings(TypedDict):
     association: AssociationSettings
     integration: IntegrationSettings
     maintenance: MaintenanceSettings
+    frames: FrameSettings
     index: IndexSettings
     detector: DetectorSettings
     map: MapSettings

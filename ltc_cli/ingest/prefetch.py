@@ -9,9 +9,11 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 
-def load_and_detect(det, lock=None):
+def load_and_detect(det, lock=None, keep=None):
     """fetch(ref) -> (frame, detections, t0, t1, t2): load the frame (t0 -> t1), then detect (t1 ->
-    t2); FrameError propagates. With a lock, ``detect`` runs under it and the wait is not timed."""
+    t2); FrameError propagates. With a lock, ``detect`` runs under it and the wait is not timed.
+    ``keep(frame) -> bool``: False leaves a frame undetected (detections None, t2 = t1): a still
+    camera's frame, which the session does not map (ingest/keyframes.py)."""
 
     # Readers may leave the colour image to be decoded on first use (Frame.rgb): a detector that
     # says it needs no colour (``needs_rgb = False``, like ``recorded``) never decodes it; for the
@@ -21,6 +23,9 @@ def load_and_detect(det, lock=None):
     def fetch(ref):
         t0 = time.perf_counter()
         frame = ref.load()
+        if keep is not None and not keep(frame):
+            t1 = time.perf_counter()
+            return frame, None, t0, t1, t1
         if needs_rgb:
             frame.rgb  # noqa: B018  (the read decodes it)
         t1 = time.perf_counter()

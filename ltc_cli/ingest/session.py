@@ -35,6 +35,7 @@ from ltc_cli import __version__, plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
+from ltc_cli.ingest.keyframes import StillFrames
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
@@ -55,6 +56,7 @@ class IngestSummary:
     frames_done: int = 0
     frames_skipped: int = 0
     frames_already: int = 0
+    frames_still: int = 0  # the camera had not moved since the last frame mapped (keyframes.py)
     detections: int = 0
     created: int = 0
     merged: int = 0
@@ -264,7 +266,7 @@ def _session_row(smap: SemanticMap, plan: Plan) -> tuple[int, dict]:
         "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
-        "frames_done": 0, "frames_skipped": 0, "visit": visit,
+        "frames_done": 0, "frames_skipped": 0, "frames_still": 0, "still_refs": "[]", "visit": visit,
         "up_rotation": json.dumps([np.asarray(s.R_up).round(9).tolist() for s in plan.setups]),
         "floor_z": json.dumps([None if s.floor_z is None else round(float(s.floor_z), 6) for s in plan.setups]),
         "cameras": json.dumps([camera_record(s.recording, s.depth_noise) for s in plan.setups]),
@@ -308,8 +310,9 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
     max_dets = plan.settings["modeling"]["max_detections"]
     error: BaseException | None = None
     ahead: Prefetch | None = None
+    still = StillFrames(plan.settings["frames"], len(plan.setups), json.loads(row.get("still_refs") or "[]"))
     try:
-        for setup in plan.setups:
+        for r, setup in enumerate(plan.setups):
             rec, det = setup.recording, setup.detector
             mapper_classes = ClassMapper(det.classes, smap.classes, plan.settings["integration"]["unassigned_score"])
             T_up = setup.T_up
@@ -318,7 +321,8 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 ahead = opts.cluster.ahead(setup, plan, smap.classes, keys, smap.frame_keys, opts.should_stop)
             elif opts.jobs > 1:
                 ahead = Prefetch(rec.frames, keys, smap.frame_keys, det, opts.jobs)
-            fetch = ahead.take if ahead is not None else load_and_detect(det)
+            fetch = ahead.take if ahead is not None else load_and_detect(
+                det, keep=lambda f, r=r: not still.still(r, f.T_world_camera))
             warned: set = set()  # once-keys of this recording's frame warnings already reported
             for ref, key in zip(rec.frames, keys):
                 if opts.should_stop():
@@ -343,6 +347,12 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     continue
                 _report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
+                if still.still(r, frame.T_world_camera):  # done, not mapped (nor detected without --jobs)
+                    smap.frame_keys.add(key)
+                    summary.frames_still += 1
+                    row["frames_still"] = int(row.get("frames_still") or 0) + 1
+                    opts.tick()
+                    continue
                 stage["detect"] += t2 - t1
                 if not isinstance(dets, FrameModel) and len(dets) > max_dets:
                     opts.warn(f"{detections_source(det, frame)}: {len(dets)} detections in one frame, more than "
@@ -359,6 +369,8 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 for k, v in res.timings.items():
                     stage[k] += v
                 smap.frame_keys.add(key)
+                still.mapped(r, frame.T_world_camera)
+                row["still_refs"] = json.dumps(still.refs)
                 summary.frames_done += 1
                 row["frames_done"] += 1
                 summary.detections += res.detections

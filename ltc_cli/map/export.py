@@ -187,6 +187,7 @@ def sessions_summary(smap: SemanticMap) -> list[dict]:
             "v_other": float(s["v_other"]) if s.get("v_other") is not None else None,
             "frames_done": int(s.get("frames_done", 0) or 0),
             "frames_skipped": int(s.get("frames_skipped", 0) or 0),
+            "frames_still": int(s.get("frames_still", 0) or 0),
             "cameras": cameras if isinstance(cameras, list) else [],  # none in maps written before
         })
     return out

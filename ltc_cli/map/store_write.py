@@ -37,6 +37,8 @@ SESSION_COLUMNS = {
     "ltc_version": "s", "frames_done": "i", "frames_skipped": "i", "up_rotation": "s", "floor_z": "s",
     "visit": "i",  # 1 for a recording's first ingest, n for its n-th (--revisit); 0 in older maps
     "cameras": "s",  # per recording: size, fx fy cx cy, the reader's calibration name; "" in older maps
+    "frames_still": "i",  # frames not mapped: the camera had not moved (ingest/keyframes.py); 0 in older maps
+    "still_refs": "s",  # per recording, the last mapped pose (JSON), that a resumed session goes on from
 }
 # Checksummed metadata (libver v108); free-space records kept in the file, so freed space is reused.
 FILE_OPTIONS = {"libver": ("v108", "latest"), "fs_strategy": "fsm", "fs_persist": True, "fs_threshold": 1}

@@ -1,0 +1,58 @@
+"""Frames of a camera that has not moved are not mapped (``frames.still_move``, ``frames.still_turn``).
+
+A robot that stops (at a door, behind a person, at its dock) records the same view for as long as
+it stands there. The four stages treat every frame as new evidence: eq. 3 weighs a class vector by
+its observations, and stage 3 averages boxes by them, so a few hundred frames of one view outweigh
+the rest of the route. On tum-fr1-rpy, the camera stopped for 150 frames at three places gave a
+"laptop" where there is none, moved the second monitor's box 0.22 m and lost the white mouse and a
+chair (docs/decisions.md, issue 9, fifty-fourth round). A frame is mapped only when the camera has
+moved or turned enough since the last frame mapped, as keyframe-based mapping systems do; the
+frames in between are still, recorded as done, and not detected when nothing looks ahead.
+
+Pure numpy; the session (ingest/session.py) applies the decisions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def turn_degrees(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """The angle (degrees) of the rotation between two orientations (3, 3): trace(R_a^T R_b) =
+    1 + 2 cos(angle)."""
+    cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+def is_still(T_ref: np.ndarray | None, T: np.ndarray, min_move: float | None, min_turn_deg: float | None) -> bool:
+    """Whether a camera pose T (4, 4) is still against the last mapped one T_ref (4, 4): moved under
+    ``min_move`` metres and turned under ``min_turn_deg`` degrees. None for either setting, or no
+    T_ref yet: never still (every frame is mapped, the paper)."""
+    if T_ref is None or min_move is None or min_turn_deg is None:
+        return False
+    if np.linalg.norm(T[:3, 3] - T_ref[:3, 3]) >= min_move:
+        return False
+    return turn_degrees(T_ref[:3, :3], T[:3, :3]) < min_turn_deg
+
+
+class StillFrames:
+    """The last mapped pose of each recording of a session, and the decisions against it.
+
+    ``refs`` is what the session row keeps (``still_refs``: per recording, the last mapped
+    camera-to-world pose as a nested list, or None), so that an interrupted ingest resumes with the
+    same reference and ends in the map an uninterrupted one makes.
+    """
+
+    def __init__(self, settings: dict, n_recordings: int, refs: list | None = None):
+        self.min_move = settings["still_move"]
+        self.min_turn = settings["still_turn"]
+        refs = list(refs or [])[:n_recordings]
+        self.refs = refs + [None] * (n_recordings - len(refs))
+
+    def still(self, recording: int, T_world_camera: np.ndarray) -> bool:
+        ref = self.refs[recording]
+        return is_still(None if ref is None else np.asarray(ref, dtype=np.float64), T_world_camera,
+                        self.min_move, self.min_turn)
+
+    def mapped(self, recording: int, T_world_camera: np.ndarray) -> None:
+        self.refs[recording] = np.asarray(T_world_camera, dtype=np.float64).tolist()

@@ -1,0 +1,164 @@
+"""A still camera's frames are not mapped (``frames.still_move`` / ``frames.still_turn``,
+ltc_cli/ingest/keyframes.py): the test by hand, the ingest that records them as done without
+mapping or detecting them, and a resume that goes on from the last mapped pose."""
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy.spatial.transform import Rotation
+
+from ltc_cli import hookimpl, plugins
+from ltc_cli.cli import cli
+from ltc_cli.config import defaults, load_config
+from ltc_cli.ingest.keyframes import StillFrames, is_still, turn_degrees
+from ltc_cli.ingest.session import ingest
+from ltc_cli.map.store import load_map
+from ltc_plugins.recorded import RecordedDetector
+from tests.test_revisit import assert_same_map
+
+LAP1 = Path(__file__).resolve().parent.parent / "sample_data" / "lap1"
+N_FRAMES = 76
+STILL_AFTER, COPIES = "000010", 5
+
+
+def pose(xyz=(0.0, 0.0, 0.0), rotvec_deg=(0.0, 0.0, 0.0)) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(np.radians(rotvec_deg)).as_matrix()
+    T[:3, 3] = xyz
+    return T
+
+
+def test_still_by_hand():
+    ref = pose((1.0, 2.0, 0.5))
+    # 0.015 m and 1.9 degrees are under 0.02 m and 2 degrees: still; 0.025 m or 2.1 degrees is a move.
+    assert is_still(ref, pose((1.015, 2.0, 0.5)), 0.02, 2.0)
+    assert not is_still(ref, pose((1.0, 2.025, 0.5)), 0.02, 2.0)
+    axis = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)  # a roll and pitch together: the angle, not per axis
+    assert is_still(ref, pose((1.0, 2.0, 0.5), 1.9 * axis), 0.02, 2.0)
+    assert not is_still(ref, pose((1.0, 2.0, 0.5), 2.1 * axis), 0.02, 2.0)
+    # The first frame, or a setting of null, is never still (every frame mapped, the paper).
+    assert not is_still(None, ref, 0.02, 2.0)
+    assert not is_still(ref, ref, None, 2.0) and not is_still(ref, ref, 0.02, None)
+
+
+def test_turn_degrees_is_the_rotation_angle():
+    rng = np.random.default_rng(3)
+    for _ in range(50):  # against scipy's angle of R_a^T R_b
+        a, b = Rotation.random(random_state=rng), Rotation.random(random_state=rng)
+        assert turn_degrees(a.as_matrix(), b.as_matrix()) == pytest.approx(np.degrees((a.inv() * b).magnitude()),
+                                                                             abs=1e-6)
+
+
+def test_reference_is_the_last_mapped_pose_of_each_recording():
+    still = StillFrames({"still_move": 0.02, "still_turn": 2.0}, 2)
+    assert not still.still(0, pose())  # no frame mapped yet
+    still.mapped(0, pose())
+    # Creeping 1.5 cm a frame: the second step is 3 cm from the last mapped pose, not 1.5 from the last.
+    assert still.still(0, pose((0.015, 0, 0)))
+    assert not still.still(0, pose((0.03, 0, 0)))
+    assert not still.still(1, pose())  # the other recording has its own
+    resumed = StillFrames({"still_move": 0.02, "still_turn": 2.0}, 2, still.refs)
+    assert resumed.still(0, pose((0.015, 0, 0)))
+
+
+def with_still_copies(root: Path) -> Path:
+    """sample_data/lap1 with the camera stopped after frame STILL_AFTER for COPIES frames: the same
+    images, detections and pose again under new frame ids."""
+    rec = root / "still"
+    shutil.copytree(LAP1, rec)
+    lines = []
+    for line in (LAP1 / "poses.txt").read_text().splitlines():
+        lines.append(line)
+        if line.split()[0] == STILL_AFTER:
+            for k in range(COPIES):
+                fid = f"{STILL_AFTER}s{k}"
+                lines.append(line.replace(STILL_AFTER, fid, 1))
+                for sub, ext in (("rgb", "png"), ("depth", "png"), ("detections", "json")):
+                    shutil.copy(LAP1 / sub / f"{STILL_AFTER}.{ext}", rec / sub / f"{fid}.{ext}")
+    (rec / "poses.txt").write_text("\n".join(lines) + "\n")
+    return rec
+
+
+def test_still_frames_are_done_not_mapped(tmp_path):
+    rec = with_still_copies(tmp_path)
+    s = ingest([rec], tmp_path / "still.h5", defaults())
+    # The sample's camera moves 7 cm or more between frames: only the copies are still.
+    assert (s.frames_done, s.frames_still) == (N_FRAMES, COPIES)
+    smap = load_map(tmp_path / "still.h5")
+    assert len(smap.frame_keys) == N_FRAMES + COPIES and smap.sessions[0]["frames_still"] == COPIES
+    # Every frame mapped, the paper: the copies are five more observations of what frame 10 saw.
+    off = ingest([rec], tmp_path / "every.h5", load_config(None, ["frames.still_move=null"]))
+    assert (off.frames_done, off.frames_still) == (N_FRAMES + COPIES, 0)
+    n_det = {m: load_map(tmp_path / m).objects.columns()["n_det"].sum() for m in ("still.h5", "every.h5")}
+    assert n_det["every.h5"] > n_det["still.h5"]
+    # A re-run changes nothing: the still frames are in the map.
+    again = ingest([rec], tmp_path / "still.h5", defaults())
+    assert (again.frames_done, again.frames_still, again.frames_already) == (0, 0, N_FRAMES + COPIES)
+
+
+class Counting(RecordedDetector):
+    """The recorded detector, keeping the keys of the frames it was asked to detect."""
+
+    keys: list = []
+
+    def detect(self, frame):
+        Counting.keys.append(frame.key)
+        return super().detect(frame)
+
+
+class CountingPlugin:
+    @hookimpl
+    def register_detectors(self, register):
+        register("counting-recorded", Counting.from_options)
+
+
+@pytest.fixture
+def counting():
+    plugins.register_plugin(CountingPlugin(), name="test-counting")
+    Counting.keys = []
+    yield Counting.keys
+    plugins.unregister_plugin("test-counting")
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_still_frames_are_detected_only_by_a_look_ahead(tmp_path, counting, jobs):
+    rec = with_still_copies(tmp_path)
+    s = ingest([rec], tmp_path / "m.h5", load_config(None, ["detector.name=counting-recorded"]), jobs=jobs)
+    assert (s.frames_done, s.frames_still) == (N_FRAMES, COPIES)
+    copies = {f"{STILL_AFTER}s{k}" for k in range(COPIES)}
+    # One at a time, a still frame is known before its detection, which is not run; threads that
+    # detect ahead of the mapper cannot know it yet (the decision needs the frames before it mapped).
+    if jobs == 1:
+        assert copies.isdisjoint(counting) and len(counting) == N_FRAMES
+    else:
+        assert copies <= set(counting) and len(counting) == N_FRAMES + COPIES
+
+
+def test_interrupted_among_still_frames_resumes_from_the_last_mapped_pose(tmp_path):
+    rec = with_still_copies(tmp_path)
+    ref = tmp_path / "ref.h5"
+    ingest([rec], ref, defaults())
+    m = tmp_path / "m.h5"
+    done = []
+    # Stop right after frame 10 is mapped, before its still copies: the resumed run must know frame
+    # 10's pose, which only the session row keeps.
+    s = ingest([rec], m, defaults(), checkpoint_every=4, on_frame=lambda summary: done.append(1),
+               should_stop=lambda: len(done) >= 11)
+    assert s.interrupted and (s.frames_done, s.frames_still) == (11, 0)
+    s2 = ingest([rec], m, defaults())
+    assert (s2.frames_done, s2.frames_still, s2.frames_already) == (N_FRAMES - 11, COPIES, 11)
+    assert_same_map(ref, m)
+    assert load_map(m).sessions[0]["frames_still"] == COPIES
+
+
+def test_summary_line_and_info_say_how_many_were_still(tmp_path):
+    rec = with_still_copies(tmp_path)
+    m = tmp_path / "m.h5"
+    r = CliRunner().invoke(cli, ["ingest", str(rec), "--map", str(m)])
+    assert r.exit_code == 0, r.output
+    assert f"{N_FRAMES} frames ingested, 0 skipped, {COPIES} still (the camera had not moved), 0 already" in r.output
+    info = CliRunner().invoke(cli, ["info", str(m)])
+    assert f"{N_FRAMES} frames (0 skipped, {COPIES} still)" in info.output
