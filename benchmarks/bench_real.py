@@ -24,7 +24,9 @@ or 50 % of the detections (``WEAKER_SHARES``), a draw for each session. And its 
 boxes put in of things no longer there and at moved things' old places (tests/real_ghosts.py), is
 revisited in five ways (``GHOST_PASSES``): which of those boxes each revisit removes, and whether it
 keeps every other id. After every group of passes, what ``ltc changes`` reports of its revisits:
-the room did not change, so anything it reports is wrong.
+the room did not change, so anything it reports is wrong. Last, the camera stops for 150 frames at
+three places, still or with a localiser's noise (benchmarks/real_stops.py), mapped with the
+default still-frame rule (``frames.still_move`` / ``still_turn``) and with every frame mapped.
 The detector runs once per frame; the other passes replay its detections (the detector is
 deterministic), so they cost only the mapping. Needs ../shared; prints what it measured.
 """
@@ -57,6 +59,7 @@ from ltc_cli.map.store import load_map  # noqa: E402
 from tests.real_ghosts import ghost_lines, unchanged_lines  # noqa: E402
 from tests.real_truth import APART, COUNTS, TUM_FR1_RPY, check, merged_pairs  # noqa: E402
 from tests.replay import Drifted, Reordered, Replay, weaker  # noqa: E402
+from real_stops import READERS as STOPPED_READERS, stopped_lines  # noqa: E402
 
 # ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
 SHARED = next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
@@ -83,6 +86,8 @@ class BenchPlugin:
             register(reader, Reordered(**kwargs))
         for seed in {s for pair in DRIFT_DRAWS for s in pair}:
             register(f"drift-{seed}", Drifted(seed, DRIFT_FRAMES))
+        for reader, opened in STOPPED_READERS.items():
+            register(reader, opened)
 
     @hookimpl
     def register_detectors(self, register):
@@ -403,6 +408,7 @@ def main():
                 weak = weaker_passes(name, path, tmp, sets, args.keep)
                 for line in landmarks_line(name, weak) + apart_line(name, weak) + unchanged_lines(weak):
                     print(line)
+                print("\n".join(stopped_lines(name, path, tmp, sets, census, verdict)))
 
 
 if __name__ == "__main__":

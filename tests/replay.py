@@ -106,3 +106,48 @@ class Drifted:
             return replace(ref, load=load)
 
         return replace(rec, frames=[drifted(ref, k) for k, ref in enumerate(rec.frames)])
+
+
+class Stopped:
+    """Any recording with the camera stopped after the frames at positions ``at``: each followed by
+    ``n`` copies of itself (its images under new frame ids; the loaded frame keeps its key, so a
+    :class:`Replay` detector replays its detections), as a robot that waits at a door or behind a
+    person records one view for seconds. With ``jitter`` (metres, degrees), each
+    copy's pose is off by that much, drawn from ``seed``: a localiser's noise while standing."""
+
+    def __init__(self, at: tuple, n: int, jitter: tuple | None = None, seed: int = 0):
+        self.at, self.n, self.jitter, self.seed = set(at), n, jitter, seed
+
+    def sniff(self, path) -> bool:
+        return False
+
+    def open(self, path, options):
+        import numpy as np
+        from scipy.spatial.transform import Rotation
+
+        from ltc_cli.recordings.open import open_recording
+
+        rec = open_recording(path)
+        rng = np.random.default_rng(self.seed)
+
+        def copy(ref, k):
+            if self.jitter is None:
+                return replace(ref, key=f"{ref.key}-stop{k}")
+            d_pos = rng.normal(0.0, self.jitter[0], 3)
+            R_err = Rotation.from_rotvec(np.radians(rng.normal(0.0, self.jitter[1], 3))).as_matrix()
+
+            def load():
+                frame = ref.load()
+                T = frame.T_world_camera.copy()
+                T[:3, :3] = R_err @ T[:3, :3]
+                T[:3, 3] += d_pos
+                frame.T_world_camera = T
+                return frame
+            return replace(ref, key=f"{ref.key}-stop{k}", load=load)
+
+        frames = []
+        for i, ref in enumerate(rec.frames):
+            frames.append(ref)
+            if i in self.at:
+                frames += [copy(ref, k) for k in range(self.n)]
+        return replace(rec, frames=frames)

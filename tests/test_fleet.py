@@ -281,7 +281,8 @@ maps:
     r = run("ingest-many", manifest)
     assert r.exit_code == 1, r.output
     lines = r.stdout.strip().splitlines()
-    assert lines[0].split() == ["map", "recording", "status", "frames", "skip", "had", "new", "gone", "objects", "s"]
+    assert lines[0].split() == ["map", "recording", "status", "frames", "skip", "still", "had", "new", "gone",
+                                 "objects", "s"]
     assert [ln.split()[2] for ln in lines[1:4]] == ["ok", "failed", "ok"]
     assert lines[4].split()[2] == "ok" and lines[4].split()[0] == "site-b"
     assert lines[5] == f"failed: {tmp_path / 'missing-recording'}: recording does not exist"

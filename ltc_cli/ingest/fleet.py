@@ -107,12 +107,12 @@ def ingest_many(
 
 def summary_table(rows: list[Outcome]) -> list[str]:
     """The summary of an ingest-many run: one line per recording, then the errors in full."""
-    lines = [f"{'map':<16} {'recording':<28} {'status':<11} {'frames':>7} {'skip':>5} {'had':>5} "
+    lines = [f"{'map':<16} {'recording':<28} {'status':<11} {'frames':>7} {'skip':>5} {'still':>5} {'had':>5} "
              f"{'new':>5} {'gone':>5} {'objects':>7} {'s':>7}"]
     for r in rows:
         s = r.summary
-        nums = (f"{s.frames_done:>7} {s.frames_skipped:>5} {s.frames_already:>5} {s.created:>5} {s.removed:>5} "
-                if s is not None else f"{'-':>7} {'-':>5} {'-':>5} {'-':>5} {'-':>5} ")
+        nums = (f"{s.frames_done:>7} {s.frames_skipped:>5} {s.frames_still:>5} {s.frames_already:>5} {s.created:>5} "
+                f"{s.removed:>5} " if s is not None else f"{'-':>7} {'-':>5} {'-':>5} {'-':>5} {'-':>5} {'-':>5} ")
         objects = "-" if r.objects is None else str(r.objects)
         lines.append(f"{r.map_name[:16]:<16} {_tail(r.recording, 28):<28} {r.status:<11} {nums}{objects:>7} "
                      f"{r.seconds:>7.1f}")
