@@ -476,4 +476,4 @@ def test_a_camera_that_stops_maps_as_one_that_moves_on(session, tmp_path, reader
     m = tmp_path / "map.h5"
     counts, _ = session(reader, m)
     assert within_truth(counts) == [] and misplaced(m) == []
-    assert load_map(m).sessions[0]["frames_still"] >= 3 * 150
+    assert load_map(m).sessions[0]["frames_still"] >= 0.95 * 3 * 150  # the stops were seen as such

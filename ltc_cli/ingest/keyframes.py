@@ -4,8 +4,8 @@ A robot that stops (at a door, behind a person, at its dock) records the same vi
 it stands there. The four stages treat every frame as new evidence: eq. 3 weighs a class vector by
 its observations, and stage 3 averages boxes by them, so a few hundred frames of one view outweigh
 the rest of the route. On tum-fr1-rpy, the camera stopped for 150 frames at three places gave a
-"laptop" where there is none, moved the second monitor's box 0.22 m and lost the white mouse and a
-chair (docs/decisions.md, issue 9, fifty-fourth round). A frame is mapped only when the camera has
+"laptop" where there is none, moved the second monitor's box 0.22 m and lost the white mouse
+(docs/decisions.md, issue 9, fifty-fourth round). A frame is mapped only when the camera has
 moved or turned enough since the last frame mapped, as keyframe-based mapping systems do; the
 frames in between are still, recorded as done, and not detected when nothing looks ahead.
 
