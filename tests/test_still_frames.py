@@ -2,6 +2,7 @@
 ltc_cli/ingest/keyframes.py): the test by hand, the ingest that records them as done without
 mapping or detecting them, and a resume that goes on from the last mapped pose."""
 
+import json
 import shutil
 from pathlib import Path
 
@@ -62,6 +63,19 @@ def test_reference_is_the_last_mapped_pose_of_each_recording():
     assert not still.still(1, pose())  # the other recording has its own
     resumed = StillFrames({"still_move": 0.02, "still_turn": 2.0}, 2, still.refs)
     assert resumed.still(0, pose((0.015, 0, 0)))
+
+
+@pytest.mark.parametrize("text,kept", [
+    (json.dumps([np.eye(4).tolist(), None]), [True, False]),
+    ("", [False, False]),  # a row written before ltc kept the poses
+    ("not json", [False, False]),
+    (json.dumps({"0": np.eye(4).tolist()}), [False, False]),
+    (json.dumps([[[1, 2], [3, 4]], [[float("nan")] * 4] * 4]), [False, False]),  # a damaged row
+])
+def test_a_session_rows_poses_are_read_or_dropped(text, kept):
+    still = StillFrames.resumed({"still_move": 0.02, "still_turn": 1.0}, 2, text)
+    # A kept reference makes the identity pose still; a dropped one maps the next frame.
+    assert [still.still(k, np.eye(4)) for k in range(2)] == kept
 
 
 def with_still_copies(root: Path) -> Path:

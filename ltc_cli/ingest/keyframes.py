@@ -14,6 +14,8 @@ Pure numpy; the session (ingest/session.py) applies the decisions.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 
@@ -49,6 +51,17 @@ class StillFrames:
         refs = list(refs or [])[:n_recordings]
         self.refs = refs + [None] * (n_recordings - len(refs))
 
+    @classmethod
+    def resumed(cls, settings: dict, n_recordings: int, text: str) -> "StillFrames":
+        """From a session row's ``still_refs`` text. What is not a list of 4x4 finite poses (a row
+        written before ltc kept them, or damaged) is no reference: the next frame is mapped."""
+        try:
+            refs = json.loads(text or "[]")
+        except ValueError:
+            refs = []
+        refs = refs if isinstance(refs, list) else []
+        return cls(settings, n_recordings, [ref if _is_pose(ref) else None for ref in refs])
+
     def still(self, recording: int, T_world_camera: np.ndarray) -> bool:
         ref = self.refs[recording]
         return is_still(None if ref is None else np.asarray(ref, dtype=np.float64), T_world_camera,
@@ -56,3 +69,11 @@ class StillFrames:
 
     def mapped(self, recording: int, T_world_camera: np.ndarray) -> None:
         self.refs[recording] = np.asarray(T_world_camera, dtype=np.float64).tolist()
+
+
+def _is_pose(value) -> bool:
+    try:
+        T = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return T.shape == (4, 4) and bool(np.isfinite(T).all())

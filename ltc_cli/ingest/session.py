@@ -310,7 +310,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
     max_dets = plan.settings["modeling"]["max_detections"]
     error: BaseException | None = None
     ahead: Prefetch | None = None
-    still = StillFrames(plan.settings["frames"], len(plan.setups), json.loads(row.get("still_refs") or "[]"))
+    still = StillFrames.resumed(plan.settings["frames"], len(plan.setups), row.get("still_refs") or "")
     try:
         for r, setup in enumerate(plan.setups):
             rec, det = setup.recording, setup.detector
