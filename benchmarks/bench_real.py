@@ -49,16 +49,14 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
-
 from ltc_cli import hookimpl, plugins  # noqa: E402
 from ltc_cli.config import load_config  # noqa: E402
 from ltc_cli.ingest.session import ingest  # noqa: E402
-from ltc_cli.map.model import ACTIVE, top_class  # noqa: E402
 from ltc_cli.map.store import load_map  # noqa: E402
 from tests.real_ghosts import ghost_lines, unchanged_lines  # noqa: E402
 from tests.real_truth import APART, COUNTS, TUM_FR1_RPY, check, merged_pairs  # noqa: E402
 from tests.replay import Drifted, Reordered, Replay, weaker  # noqa: E402
+from real_census import census, lost_ids, new_objects  # noqa: E402
 from real_stops import READERS as STOPPED_READERS, stopped_lines  # noqa: E402
 
 # ../shared beside the checkout, or beside the folder of worktrees (/work/wt/NAME -> /work/shared).
@@ -119,48 +117,6 @@ def dining_room(tmp: Path) -> Path:
 
     dr.DATA = SHARED / "data" / "dining-room"  # the test looks beside the checkout only
     return dr.make_recording(tmp / "dining-room")
-
-
-def census(map_path) -> tuple[Counter, set]:
-    smap = load_map(map_path)
-    t = smap.objects
-    rows = np.flatnonzero(t.status == ACTIVE)
-    return Counter(smap.classes[int(c)] for c in top_class(t.scores[rows])), set((rows + 1).tolist())
-
-
-def lost_ids(map_path, ids: set) -> list[str]:
-    """What became of each session-1 id that the revisit lost: class, place and the event that ended
-    it (so a lost id can be read as a wrong object cleaned up or a real one dropped)."""
-    smap = load_map(map_path)
-    t, out = smap.objects, []
-    for oid in sorted(ids):
-        r = oid - 1
-        ends = [e for e in smap.events if e.session >= 1 and e.kind in ("removed", "merged")
-                and (e.object_id == oid if e.kind == "removed" else e.other_id == oid)]
-        how = (f"{ends[-1].kind} at frame {ends[-1].frame}" + (f" into {ends[-1].object_id}" if ends[-1].kind == "merged"
-               else f" ({ends[-1].detail})")) if ends else "?"
-        out.append(f"{smap.classes[int(top_class(t.scores[r]))]} {oid} at ({t.center[r][0]:.2f}, {t.center[r][1]:.2f}, "
-                   f"{t.center[r][2]:.2f}), {int(t.n_det[r])} detections: {how}")
-    return out
-
-
-def new_objects(map_path, ids: set, full_map_path) -> list[str]:
-    """Class, place and detections of each object a revisit added, and how far the nearest object
-    of its class stands in the map of every frame (``full_map_path``): a thing the first session
-    missed that the whole recording maps, or the detector's mistake."""
-    smap, full = load_map(map_path), load_map(full_map_path)
-    t, f = smap.objects, full.objects
-    rows = np.flatnonzero(f.status == ACTIVE)
-    out = []
-    for oid in sorted(ids):
-        r = oid - 1
-        cls = smap.classes[int(top_class(t.scores[r]))]
-        same = rows[[full.classes[int(c)] == cls for c in top_class(f.scores[rows])]]
-        near = (f"the full recording's map has one {np.linalg.norm(f.center[same] - t.center[r], axis=1).min():.2f} m "
-                f"away" if same.size else "none in the full recording's map")
-        out.append(f"{cls} {oid} at ({t.center[r][0]:.2f}, {t.center[r][1]:.2f}, {t.center[r][2]:.2f}), "
-                   f"{int(t.n_det[r])} detections; {near}")
-    return out
 
 
 def verdict(name: str, counts: Counter) -> str:
@@ -338,8 +294,9 @@ def main():
                 shutil.copyfile(m_third, Path(args.keep) / f"{name}-every-third.h5")
                 shutil.copyfile(m_odd, Path(args.keep) / f"{name}-odd-frames.h5")
             classes = sorted(set(first) | set(second) | set(rev) | set(TRUTH.get(name, {})))
-            print(f"\n{name}: {s.frames_done} frames, {s.frames_done / wall:.1f} frames/s "
-                  f"({1000 * cpu / max(s.frames_done, 1):.0f} ms CPU per frame, detection included, one thread)")
+            n_read = s.frames_done + s.frames_still
+            print(f"\n{name}: {n_read} frames ({s.frames_still} still, not mapped), {n_read / wall:.1f} frames/s "
+                  f"({1000 * cpu / max(n_read, 1):.0f} ms CPU per frame, detection included, one thread)")
             measured = [c.get("depth_noise") for c in json.loads(load_map(m).sessions[0].get("cameras") or "[]")]
             print("  depth error measured on its frames (modeling.depth_noise: auto): "
                   + ", ".join("none" if k is None else f"{k:.4f} m at 1 m" for k in measured))
@@ -408,7 +365,7 @@ def main():
                 weak = weaker_passes(name, path, tmp, sets, args.keep)
                 for line in landmarks_line(name, weak) + apart_line(name, weak) + unchanged_lines(weak):
                     print(line)
-                print("\n".join(stopped_lines(name, path, tmp, sets, census, verdict)))
+                print("\n".join(stopped_lines(name, path, tmp, sets, verdict)))
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from pathlib import Path
 from ltc_cli.config import load_config
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
+from real_census import census
 from tests.real_truth import check
 from tests.replay import Stopped
 
@@ -18,7 +19,7 @@ LABELS = {"stopped": "standing still", "stopped-jitter": f"with a localiser's no
           f"and {JITTER[1]} degrees"}
 
 
-def stopped_lines(name: str, path: Path, tmp: Path, sets: list, census, verdict) -> list[str]:
+def stopped_lines(name: str, path: Path, tmp: Path, sets: list, verdict) -> list[str]:
     """One line per way of standing: objects and the hand-measured places held, with the default
     settings and with every frame mapped (``frames.still_move: null``, the paper)."""
     out = [f"  the camera stopped for {STOP_FRAMES} frames after frames {', '.join(map(str, STOPS))} (a robot "
