@@ -222,7 +222,8 @@ def info(map_path, fmt):
         "sessions": [
             {k: s[k] for k in ("started", "finished", "status", "metric", "policy", "frames_done", "frames_skipped",
                                "v_other")}
-            | {"frames_still": int(s.get("frames_still") or 0)} | {"visit": max(1, int(s.get("visit") or 0)), "v_other_learnt": _learnt_rate(s)}
+            | {"frames_still": int(s.get("frames_still") or 0), "visit": max(1, int(s.get("visit") or 0)),
+               "v_other_learnt": _learnt_rate(s)}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
             | {"cameras": json.loads(s.get("cameras") or "[]")}
             for s in smap.sessions
