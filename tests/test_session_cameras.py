@@ -11,7 +11,7 @@ import yaml
 from click.testing import CliRunner
 
 from ltc_cli.cli import cli
-from ltc_cli.ingest.session import camera_record
+from ltc_cli.ingest.session_row import camera_record
 from ltc_plugins.readers import TumReader
 from tests.test_readers import make_tum
 

@@ -138,17 +138,32 @@ def counting():
 
 
 @pytest.mark.parametrize("jobs", [1, 2])
-def test_still_frames_are_detected_only_by_a_look_ahead(tmp_path, counting, jobs):
+def test_still_frames_are_not_detected(tmp_path, counting, jobs):
     rec = with_still_copies(tmp_path)
     s = ingest([rec], tmp_path / "m.h5", load_config(None, ["detector.name=counting-recorded"]), jobs=jobs)
     assert (s.frames_done, s.frames_still) == (N_FRAMES, COPIES)
-    copies = {f"{STILL_AFTER}s{k}" for k in range(COPIES)}
-    # One at a time, a still frame is known before its detection, which is not run; threads that
-    # detect ahead of the mapper cannot know it yet (the decision needs the frames before it mapped).
-    if jobs == 1:
-        assert copies.isdisjoint(counting) and len(counting) == N_FRAMES
-    else:
-        assert copies <= set(counting) and len(counting) == N_FRAMES + COPIES
+    # One at a time, a still frame is known before its detection; with threads ahead, the calling
+    # thread judges each loaded frame in order and has only the kept ones detected.
+    assert {f"{STILL_AFTER}s{k}" for k in range(COPIES)}.isdisjoint(counting)
+    assert sorted(counting) == sorted(set(counting)) and len(counting) == N_FRAMES
+
+
+def test_a_frame_kept_ahead_and_not_mapped_leaves_the_map_as_one_at_a_time(tmp_path, counting):
+    """Frame 10's detections are broken: it is skipped, so the session's last mapped frame is frame
+    9, and the first still copy of frame 10 (7 cm from frame 9) is mapped. The look-ahead kept frame
+    10 and judged that copy still by it; the session detects it then, and the map is the one a
+    run without look-ahead makes."""
+    rec = with_still_copies(tmp_path)
+    (rec / "detections" / f"{STILL_AFTER}.json").write_text("{")
+    cfg = load_config(None, ["detector.name=counting-recorded"])
+    one = ingest([rec], tmp_path / "one.h5", cfg)
+    detected_one = sorted(counting)
+    counting.clear()
+    two = ingest([rec], tmp_path / "two.h5", cfg, jobs=2)
+    assert (one.frames_done, one.frames_skipped, one.frames_still) == (N_FRAMES, 1, COPIES - 1)
+    assert (two.frames_done, two.frames_skipped, two.frames_still) == (N_FRAMES, 1, COPIES - 1)
+    assert_same_map(tmp_path / "one.h5", tmp_path / "two.h5")
+    assert f"{STILL_AFTER}s0" in detected_one and sorted(counting) == detected_one
 
 
 def test_interrupted_among_still_frames_resumes_from_the_last_mapped_pose(tmp_path):

@@ -7,7 +7,7 @@ the rest of the route. On tum-fr1-rpy, the camera stopped for 150 frames at thre
 "laptop" where there is none, moved the second monitor's box 0.22 m and lost the white mouse
 (docs/decisions.md, issue 9, fifty-fourth round). A frame is mapped only when the camera has
 moved or turned enough since the last frame mapped, as keyframe-based mapping systems do; the
-frames in between are still, recorded as done, and not detected when nothing looks ahead.
+frames in between are still, recorded as done, and not detected.
 
 Pure numpy; the session (ingest/session.py) applies the decisions.
 """
@@ -69,6 +69,20 @@ class StillFrames:
 
     def mapped(self, recording: int, T_world_camera: np.ndarray) -> None:
         self.refs[recording] = np.asarray(T_world_camera, dtype=np.float64).tolist()
+
+    def judge_ahead(self, recording: int):
+        """keep(frame) -> bool for a look-ahead that decides, in recording order, which of the
+        next frames to detect: a copy of this recording's reference, moved to each frame it keeps.
+        It agrees with :meth:`still` as long as every frame kept is mapped; where one is not (its
+        detections were bad), the session's own decision stands (ingest/session.py)."""
+        ahead = StillFrames({"still_move": self.min_move, "still_turn": self.min_turn}, 1, [self.refs[recording]])
+
+        def keep(frame) -> bool:
+            if ahead.still(0, frame.T_world_camera):
+                return False
+            ahead.mapped(0, frame.T_world_camera)
+            return True
+        return keep
 
 
 def _is_pose(value) -> bool:

@@ -41,6 +41,33 @@ def load_and_detect(det, lock=None, keep=None):
     return fetch
 
 
+def _load(ref):
+    """(frame, t0, t1): the frame loaded, colour left undecoded (a frame not kept never needs it)."""
+    t0 = time.perf_counter()
+    frame = ref.load()
+    return frame, t0, time.perf_counter()
+
+
+def _timed_detect(det, lock):
+    """detect(frame) -> (detections, seconds decoding colour, seconds detecting); under ``lock``
+    when given (its wait not timed)."""
+    needs_rgb = getattr(det, "needs_rgb", True)
+
+    def detect(frame):
+        t0 = time.perf_counter()
+        if needs_rgb:
+            frame.rgb  # noqa: B018  (the read decodes it)
+        t1 = time.perf_counter()
+        if lock is None:
+            dets = det.detect(frame)
+            return dets, t1 - t0, time.perf_counter() - t1
+        with lock:
+            td = time.perf_counter()
+            dets = det.detect(frame)
+            return dets, t1 - t0, time.perf_counter() - td
+    return detect
+
+
 class Stopped(Exception):
     """The caller asked to stop while a frame's result was awaited (see Prefetch.wait)."""
 
@@ -53,6 +80,12 @@ class Prefetch:
     look-ahead window are never loaded. Everything is submitted from the calling thread, so ``done``
     (the map's frame keys) is only read there.
 
+    ``keep(frame) -> bool`` (ingest/keyframes.py ``judge_ahead``) makes it two steps: the threads
+    load the frames, the calling thread judges each loaded frame in recording order (never out of
+    it: the judgement of a frame depends on those before it), and only the frames kept are
+    detected, in the threads; a frame not kept comes back with detections None. A still camera's
+    frames then cost their loading only, as they do without look-ahead.
+
     ``pool`` and ``task`` replace the thread pool and ``load_and_detect``: any
     ``concurrent.futures.Executor`` (a Dask client's ``get_executor()``) and a callable
     ``task([(position, key), ...]) -> [result, ...]`` it can run (remote.FrameTask), given up to
@@ -61,15 +94,21 @@ class Prefetch:
     """
 
     def __init__(self, refs, keys, done, det, jobs: int, lookahead: int | None = None, pool=None, task=None,
-                 batch: int = 1):
+                 batch: int = 1, keep=None):
         self.refs = list(refs)
         self.keys = list(keys)
         self.done = done
         self.position = {id(r): i for i, r in enumerate(self.refs)}
+        self.keep = keep if task is None else None
+        self.judged: dict = {}  # position -> (frame, detection future or None, t0, t1) or the load's error
         if task is None:
             lock = None if getattr(det, "thread_safe", False) else threading.Lock()
-            fetch = load_and_detect(det, lock)
-            task = lambda items: [fetch(self.refs[j]) for j, _ in items]  # noqa: E731
+            self.detect = _timed_detect(det, lock)
+            if self.keep is not None:
+                task = lambda items: [_load(self.refs[j]) for j, _ in items]  # noqa: E731
+            else:
+                fetch = load_and_detect(det, lock)
+                task = lambda items: [fetch(self.refs[j]) for j, _ in items]  # noqa: E731
         self.task = task
         self.batch = max(1, batch)
         self.lookahead = max(self.batch, lookahead or 2 * jobs)
@@ -92,7 +131,11 @@ class Prefetch:
         i = self.position[id(ref)]
         for j in [j for j in self.pending if j < i]:  # frames the caller skipped after all
             self._drop(j)
-        while self.next < len(self.refs) and (self.next <= i or len(self.pending) < self.lookahead):
+        for j in [j for j in self.judged if j < i]:
+            judged = self.judged.pop(j)
+            if isinstance(judged, tuple) and judged[1] is not None:
+                judged[1].cancel()
+        while self.next < len(self.refs) and (self.next <= i or len(self.pending) + len(self.judged) < self.lookahead):
             items = []
             while self.next < len(self.refs) and len(items) < self.batch:
                 if self.keys[self.next] not in self.done:
@@ -100,10 +143,44 @@ class Prefetch:
                 self.next += 1
             if items:
                 self._submit(items)
-        if i not in self.pending:  # not submitted (its key was already in the map then): do it now
+        if i not in self.pending and i not in self.judged:  # not submitted (its key was already in the map then)
             self._submit([(i, ref.key)])
-        fut, k = self.pending.pop(i)
-        return self.wait(fut)[k]
+        if self.keep is None:
+            fut, k = self.pending.pop(i)
+            return self.wait(fut)[k]
+        self._judge(i)
+        judged = self.judged.pop(i)
+        if isinstance(judged, BaseException):
+            raise judged
+        frame, det_fut, t0, t1 = judged
+        if det_fut is None:
+            return frame, None, t0, t1, t1
+        dets, decode, seconds = self.wait(det_fut)
+        return frame, dets, t0, t1 + decode, t1 + decode + seconds
+
+    def _judge(self, i) -> None:
+        """Judge the loaded frames in recording order: up to ``i`` (waiting for their loads), then
+        on while the next one is loaded; submit the detection of each frame kept."""
+        for j in sorted(self.pending):
+            fut, k = self.pending[j]
+            if j > i and not fut.done():
+                break
+            del self.pending[j]
+            try:
+                frame, t0, t1 = self.wait(fut)[k]
+            except Stopped:
+                raise
+            except Exception as exc:  # noqa: BLE001  (a bad frame: raised again when taken)
+                self.judged[j] = exc
+                continue
+            det_fut = self.pool.submit(self.detect, frame) if self.keep(frame) else None
+            self.judged[j] = (frame, det_fut, t0, t1)
+
+    def detect_now(self, frame):
+        """Detect one frame in the calling thread (under the detector's lock): a frame the look-ahead
+        did not keep and the session maps after all."""
+        dets, _, _ = self.detect(frame)
+        return dets
 
     def wait(self, fut):
         """The result of a batch's future (a subclass may stop waiting: raise Stopped)."""
@@ -113,6 +190,10 @@ class Prefetch:
         """Cancel the work not started, wait for the frames in flight, drop every result."""
         for fut, _ in self.pending.values():
             fut.cancel()
+        for judged in self.judged.values():
+            if isinstance(judged, tuple) and judged[1] is not None:
+                judged[1].cancel()
         self.pending.clear()
+        self.judged.clear()
         if self.own_pool:
             self.pool.shutdown(wait=True, cancel_futures=True)

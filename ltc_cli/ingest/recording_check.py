@@ -9,7 +9,7 @@ import numpy as np
 from ltc_cli.geometry.pose_agreement import TOLERANCE
 from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.pose_check import pose_message
-from ltc_cli.ingest.session import camera_record
+from ltc_cli.ingest.session_row import camera_record
 
 
 def check_recording(rec, warn=None) -> dict:

@@ -25,18 +25,18 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import asdict, dataclass, field
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from ltc_cli import __version__, plugins
+from ltc_cli import plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.keyframes import StillFrames
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
+from ltc_cli.ingest.session_row import now_iso, session_row
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
@@ -132,10 +132,6 @@ class Plan:
     reader_options: dict | None = None
 
 
-def now_iso() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
 def frame_key(identity: str, frame: str, visit: int) -> str:
     """The map's key of a frame; a first visit keeps the plain key that maps made before
     ``--revisit`` hold, so they resume and skip as before."""
@@ -222,59 +218,6 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
     return Plan(settings, calibration, setups, metric, policy, revisit)
 
 
-def _visit_of(row: dict) -> int:
-    return max(1, int(row.get("visit") or 0))  # rows written before --revisit hold 0: a first visit
-
-
-def camera_record(rec: Recording, depth_noise: float | None = None) -> dict:
-    """The camera a recording was read with, for its session row: the image size and pinhole
-    parameters, the reader's name for the calibration when it chose one (tum: fr1-fr3, or
-    ros when the folder's name tells no sensor), and the depth error measured on its frames."""
-    intr = rec.intrinsics
-    row = {"width": int(intr.width), "height": int(intr.height),
-           **{k: round(float(getattr(intr, k)), 6) for k in ("fx", "fy", "cx", "cy")}}
-    named = (rec.meta or {}).get("camera")  # recording.yaml's camera section is no name
-    row |= {"camera": named} if isinstance(named, str) and named else {}
-    return row | ({"depth_noise": round(float(depth_noise), 5)} if depth_noise is not None else {})
-
-
-def _session_row(smap: SemanticMap, plan: Plan) -> tuple[int, dict]:
-    recordings = [s.recording for s in plan.setups]
-    identities = [r.identity for r in recordings]
-    last = smap.sessions[-1] if smap.sessions else None
-    # An interrupted session over the same recordings is resumed, not started anew, so a resumed
-    # ingest ends in exactly the map an uninterrupted one makes. A plain run resumes first visits
-    # only (so it never adds frames to a revisit); --revisit resumes whichever visit was cut short.
-    if (last is not None and last["status"] != "complete" and json.loads(last["recordings"]) == identities
-            and (plan.revisit or _visit_of(last) == 1)):
-        last["status"] = "running"
-        last["visit"] = _visit_of(last)
-        return len(smap.sessions) - 1, last
-    visit = 1
-    if plan.revisit:
-        mine = set(identities)
-        visit += max((_visit_of(s) for s in smap.sessions if mine & set(json.loads(s["recordings"]))), default=0)
-    config = plan.settings
-    settings = {k: v for k, v in config.items() if k != "detector"}
-    if plan.calibration is not None:
-        settings["calibration"] = plan.calibration
-    row = {
-        "started": now_iso(), "finished": "", "status": "running",
-        "sources": json.dumps([str(Path(r.path).resolve()) for r in recordings]),
-        "recordings": json.dumps(identities),
-        "readers": json.dumps([r.format for r in recordings]),
-        "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
-        "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
-        "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
-        "frames_done": 0, "frames_skipped": 0, "frames_still": 0, "still_refs": "[]", "visit": visit,
-        "up_rotation": json.dumps([np.asarray(s.R_up).round(9).tolist() for s in plan.setups]),
-        "floor_z": json.dumps([None if s.floor_z is None else round(float(s.floor_z), 6) for s in plan.setups]),
-        "cameras": json.dumps([camera_record(s.recording, s.depth_noise) for s in plan.setups]),
-    }
-    smap.sessions.append(row)
-    return len(smap.sessions) - 1, row
-
-
 def _report_warnings(frame, warned: set, strict: bool, warn) -> None:
     """Report the warnings a reader or detector left on a usable frame (a ``once`` key only the
     first time in the recording); with ``strict`` the first one stops the ingest as a FrameError."""
@@ -299,7 +242,7 @@ def detections_source(det, frame) -> str:
 
 def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> IngestSummary:
     n_sessions = len(smap.sessions)
-    session, row = _session_row(smap, plan)
+    session, row = session_row(smap, plan)
     resumed = len(smap.sessions) == n_sessions
     mapper = Mapper(smap, plan.settings, plan.metric, plan.policy, session=session)
     summary = IngestSummary(session=session, visit=row["visit"])
@@ -320,7 +263,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             if opts.cluster is not None:
                 ahead = opts.cluster.ahead(setup, plan, smap.classes, keys, smap.frame_keys, opts.should_stop)
             elif opts.jobs > 1:
-                ahead = Prefetch(rec.frames, keys, smap.frame_keys, det, opts.jobs)
+                ahead = Prefetch(rec.frames, keys, smap.frame_keys, det, opts.jobs, keep=still.judge_ahead(r))
             fetch = ahead.take if ahead is not None else load_and_detect(
                 det, keep=lambda f, r=r: not still.still(r, f.T_world_camera))
             warned: set = set()  # once-keys of this recording's frame warnings already reported
@@ -334,6 +277,11 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     continue
                 try:
                     frame, dets, t0, t1, t2 = fetch(ref)
+                    if dets is None and not still.still(r, frame.T_world_camera):
+                        # The look-ahead judged it still by a frame kept there and not mapped here.
+                        td = time.perf_counter()
+                        dets = ahead.detect_now(frame) if ahead is not None else det.detect(frame)
+                        t2 += time.perf_counter() - td
                 except Stopped:  # asked to stop while a Dask cluster had the frame
                     summary.interrupted = True
                     break
@@ -347,7 +295,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     continue
                 _report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
-                if still.still(r, frame.T_world_camera):  # done, not mapped (nor detected without --jobs)
+                if still.still(r, frame.T_world_camera):  # done, not mapped (nor detected)
                     smap.frame_keys.add(key)
                     summary.frames_still += 1
                     row["frames_still"] = int(row.get("frames_still") or 0) + 1
