@@ -5,6 +5,7 @@ mapping or detecting them, and a resume that goes on from the last mapped pose."
 import json
 import shutil
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from ltc_cli import hookimpl, plugins
 from ltc_cli.cli import cli
 from ltc_cli.config import defaults, load_config
 from ltc_cli.ingest.keyframes import StillFrames, is_still, turn_degrees
+from ltc_cli.ingest.prefetch import Prefetch
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
 from ltc_plugins.recorded import RecordedDetector
@@ -191,3 +193,44 @@ def test_summary_line_and_info_say_how_many_were_still(tmp_path):
     assert f"{N_FRAMES} frames ingested, 0 skipped, {COPIES} still (the camera had not moved), 0 already" in r.output
     info = CliRunner().invoke(cli, ["info", str(m)])
     assert f"{N_FRAMES} frames (0 skipped, {COPIES} still)" in info.output
+
+
+class Ref:
+    """A frame reference whose load gives a frame with a pose and nothing else."""
+
+    def __init__(self, key: str, T: np.ndarray):
+        self.key, self.index, self.T = key, int(key), T
+
+    def load(self):
+        return SimpleNamespace(key=self.key, T_world_camera=self.T)
+
+
+class KeyDetector:
+    needs_rgb, thread_safe = False, True
+
+    def __init__(self):
+        self.keys: list = []
+
+    def detect(self, frame):
+        self.keys.append(frame.key)
+        return [frame.key]
+
+
+def test_the_look_ahead_judges_in_order_and_holds_its_window():
+    # Ten frames 5 cm apart, but frames 3-5 stand where frame 2 stands.
+    xs = [0.0, 0.05, 0.1, 0.1, 0.1, 0.1, 0.15, 0.2, 0.25, 0.3]
+    refs = [Ref(str(k), pose((x, 0.0, 0.0))) for k, x in enumerate(xs)]
+    det = KeyDetector()
+    still = StillFrames({"still_move": 0.02, "still_turn": 1.0}, 1)
+    ahead = Prefetch(refs, [r.key for r in refs], set(), det, jobs=2, keep=still.judge_ahead(0))
+    got = []
+    try:
+        for ref in refs:
+            frame, dets, *_ = ahead.take(ref)
+            got.append(dets)
+            # Never more frames loading or loaded ahead than the window (2 x jobs).
+            assert len(ahead.pending) + len(ahead.judged) <= ahead.lookahead
+    finally:
+        ahead.close()
+    assert got == [["0"], ["1"], ["2"], None, None, None, ["6"], ["7"], ["8"], ["9"]]
+    assert sorted(det.keys) == ["0", "1", "2", "6", "7", "8", "9"]

@@ -14,29 +14,14 @@ def load_and_detect(det, lock=None, keep=None):
     t2); FrameError propagates. With a lock, ``detect`` runs under it and the wait is not timed.
     ``keep(frame) -> bool``: False leaves a frame undetected (detections None, t2 = t1): a still
     camera's frame, which the session does not map (ingest/keyframes.py)."""
-
-    # Readers may leave the colour image to be decoded on first use (Frame.rgb): a detector that
-    # says it needs no colour (``needs_rgb = False``, like ``recorded``) never decodes it; for the
-    # others it is decoded here, in the loading time and outside the detector's lock.
-    needs_rgb = getattr(det, "needs_rgb", True)
+    detect = _timed_detect(det, lock)
 
     def fetch(ref):
-        t0 = time.perf_counter()
-        frame = ref.load()
+        frame, t0, t1 = _load(ref)
         if keep is not None and not keep(frame):
-            t1 = time.perf_counter()
             return frame, None, t0, t1, t1
-        if needs_rgb:
-            frame.rgb  # noqa: B018  (the read decodes it)
-        t1 = time.perf_counter()
-        if lock is None:
-            dets = det.detect(frame)
-            return frame, dets, t0, t1, time.perf_counter()
-        with lock:
-            td = time.perf_counter()
-            dets = det.detect(frame)
-            t2 = time.perf_counter()
-        return frame, dets, t0, t1, t1 + (t2 - td)
+        dets, decode, seconds = detect(frame)
+        return frame, dets, t0, t1 + decode, t1 + decode + seconds
 
     return fetch
 
@@ -50,7 +35,10 @@ def _load(ref):
 
 def _timed_detect(det, lock):
     """detect(frame) -> (detections, seconds decoding colour, seconds detecting); under ``lock``
-    when given (its wait not timed)."""
+    when given (its wait not timed). The colour decoding counts as loading."""
+    # Readers may leave the colour image to be decoded on first use (Frame.rgb): a detector that
+    # says it needs no colour (``needs_rgb = False``, like ``recorded``) never decodes it; for the
+    # others it is decoded here, outside the detector's lock.
     needs_rgb = getattr(det, "needs_rgb", True)
 
     def detect(frame):
@@ -135,7 +123,7 @@ class Prefetch:
             judged = self.judged.pop(j)
             if isinstance(judged, tuple) and judged[1] is not None:
                 judged[1].cancel()
-        while self.next < len(self.refs) and (self.next <= i or len(self.pending) + len(self.judged) < self.lookahead):
+        while self.next < len(self.refs) and (self.next <= i or self._held() < self.lookahead):
             items = []
             while self.next < len(self.refs) and len(items) < self.batch:
                 if self.keys[self.next] not in self.done:
@@ -157,6 +145,10 @@ class Prefetch:
             return frame, None, t0, t1, t1
         dets, decode, seconds = self.wait(det_fut)
         return frame, dets, t0, t1 + decode, t1 + decode + seconds
+
+    def _held(self) -> int:
+        """Frames loading, or loaded and judged, ahead of the caller."""
+        return len(self.pending) + len(self.judged)
 
     def _judge(self, i) -> None:
         """Judge the loaded frames in recording order: up to ``i`` (waiting for their loads), then
