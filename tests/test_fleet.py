@@ -28,6 +28,7 @@ from ltc_cli.pipeline.visibility import ray_grid
 from ltc_cli.types import Intrinsics
 from tests.test_ingest import wait_for_file
 from tests.test_jobs import assert_same_map, corrupt_copy, run, summary_line
+from tests.test_still_frames import COPIES, N_FRAMES, with_still_copies
 
 distributed = pytest.importorskip("distributed")
 
@@ -78,6 +79,16 @@ def test_dask_map_equals_the_single_process_map(laps, tmp_path, cluster):
             assert getattr(a, k) == getattr(b, k), k
     assert a.frames_done == 20 and a.removed + a.non_detections > 0  # the second lap maintained the map
     assert_same_map(ref, m)
+
+
+def test_still_frames_on_dask_make_the_single_process_map(tmp_path, cluster):
+    """The workers model a still camera's frames too (only the writer knows the last mapped pose);
+    the writer leaves them out as a single process does."""
+    rec = with_still_copies(tmp_path)
+    a = ingest([rec], tmp_path / "one.h5", defaults())
+    b = ingest([rec], tmp_path / "dask.h5", defaults(), cluster=cluster)
+    assert (a.frames_done, a.frames_still) == (b.frames_done, b.frames_still) == (N_FRAMES, COPIES)
+    assert_same_map(tmp_path / "one.h5", tmp_path / "dask.h5")
 
 
 @pytest.mark.parametrize("batch", [1, 3])  # 3 does not divide 20: the last task is short
