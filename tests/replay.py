@@ -95,17 +95,20 @@ class Drifted:
         d_pos, d_rot = pose_errors(np.random.default_rng(self.seed), len(rec.frames), opts)
         R_err = Rotation.from_rotvec(d_rot).as_matrix()
 
-        def drifted(ref, k):
-            def load():
-                frame = ref.load()
-                T = frame.T_world_camera.copy()
-                T[:3, :3] = R_err[k] @ T[:3, :3]  # the camera turned about its own centre
-                T[:3, 3] += d_pos[k]
-                frame.T_world_camera = T
-                return frame
-            return replace(ref, load=load)
+        return replace(rec, frames=[moved(ref, R_err[k], d_pos[k]) for k, ref in enumerate(rec.frames)])
 
-        return replace(rec, frames=[drifted(ref, k) for k, ref in enumerate(rec.frames)])
+
+def moved(ref, R_err, d_pos, key: str | None = None):
+    """``ref`` whose loaded pose is off by a turn ``R_err`` (3, 3) of the camera about its own
+    centre and a shift ``d_pos`` (3,), under the frame id ``key`` (default its own)."""
+    def load():
+        frame = ref.load()
+        T = frame.T_world_camera.copy()
+        T[:3, :3] = R_err @ T[:3, :3]
+        T[:3, 3] += d_pos
+        frame.T_world_camera = T
+        return frame
+    return replace(ref, key=ref.key if key is None else key, load=load)
 
 
 class Stopped:
@@ -135,15 +138,7 @@ class Stopped:
                 return replace(ref, key=f"{ref.key}-stop{k}")
             d_pos = rng.normal(0.0, self.jitter[0], 3)
             R_err = Rotation.from_rotvec(np.radians(rng.normal(0.0, self.jitter[1], 3))).as_matrix()
-
-            def load():
-                frame = ref.load()
-                T = frame.T_world_camera.copy()
-                T[:3, :3] = R_err @ T[:3, :3]
-                T[:3, 3] += d_pos
-                frame.T_world_camera = T
-                return frame
-            return replace(ref, key=f"{ref.key}-stop{k}", load=load)
+            return moved(ref, R_err, d_pos, key=f"{ref.key}-stop{k}")
 
         frames = []
         for i, ref in enumerate(rec.frames):

@@ -40,15 +40,15 @@ def is_still(T_ref: np.ndarray | None, T: np.ndarray, min_move: float | None, mi
 class StillFrames:
     """The last mapped pose of each recording of a session, and the decisions against it.
 
-    ``refs`` is what the session row keeps (``still_refs``: per recording, the last mapped
-    camera-to-world pose as a nested list, or None), so that an interrupted ingest resumes with the
-    same reference and ends in the map an uninterrupted one makes.
+    ``refs``: per recording, the last mapped camera-to-world pose (4, 4), or None. :meth:`text` is
+    what the session row keeps of them (``still_refs``), so that an interrupted ingest resumes with
+    the same reference and ends in the map an uninterrupted one makes.
     """
 
     def __init__(self, settings: dict, n_recordings: int, refs: list | None = None):
         self.min_move = settings["still_move"]
         self.min_turn = settings["still_turn"]
-        refs = list(refs or [])[:n_recordings]
+        refs = [None if ref is None else np.array(ref, dtype=np.float64) for ref in list(refs or [])[:n_recordings]]
         self.refs = refs + [None] * (n_recordings - len(refs))
 
     @classmethod
@@ -63,12 +63,14 @@ class StillFrames:
         return cls(settings, n_recordings, [ref if _is_pose(ref) else None for ref in refs])
 
     def still(self, recording: int, T_world_camera: np.ndarray) -> bool:
-        ref = self.refs[recording]
-        return is_still(None if ref is None else np.asarray(ref, dtype=np.float64), T_world_camera,
-                        self.min_move, self.min_turn)
+        return is_still(self.refs[recording], T_world_camera, self.min_move, self.min_turn)
 
     def mapped(self, recording: int, T_world_camera: np.ndarray) -> None:
-        self.refs[recording] = np.asarray(T_world_camera, dtype=np.float64).tolist()
+        self.refs[recording] = np.array(T_world_camera, dtype=np.float64)
+
+    def text(self) -> str:
+        """The references as the session row keeps them (JSON; read back by :meth:`resumed`)."""
+        return json.dumps([None if ref is None else ref.tolist() for ref in self.refs])
 
     def judge_ahead(self, recording: int):
         """keep(frame) -> bool for a look-ahead that decides, in recording order, which of the

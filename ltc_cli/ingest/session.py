@@ -22,7 +22,6 @@ visit's while an interrupted revisit still finds its own frames and resumes.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -280,7 +279,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     if dets is None and not still.still(r, frame.T_world_camera):
                         # The look-ahead judged it still by a frame kept there and not mapped here.
                         td = time.perf_counter()
-                        dets = ahead.detect_now(frame) if ahead is not None else det.detect(frame)
+                        dets = ahead.detect_now(frame)
                         t2 += time.perf_counter() - td
                 except Stopped:  # asked to stop while a Dask cluster had the frame
                     summary.interrupted = True
@@ -318,7 +317,6 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     stage[k] += v
                 smap.frame_keys.add(key)
                 still.mapped(r, frame.T_world_camera)
-                row["still_refs"] = json.dumps(still.refs)
                 summary.frames_done += 1
                 row["frames_done"] += 1
                 summary.detections += res.detections
@@ -331,6 +329,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     opts.on_frame(summary)
                 opts.tick()
                 if opts.checkpoint_every and since_commit >= opts.checkpoint_every:
+                    row["still_refs"] = still.text()
                     save_map(smap, map_path)
                     since_commit = 0
             if ahead is not None:
@@ -353,6 +352,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             ahead.close()
     row["status"] = "interrupted" if (summary.interrupted or error is not None) else "complete"
     row["finished"] = now_iso()
+    row["still_refs"] = still.text()
     # A run that mapped no frame leaves the file as it was (and creates none): bad input never
     # changes a map.
     if summary.frames_done > 0 or (completes and error is None):
