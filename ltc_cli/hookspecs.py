@@ -65,5 +65,7 @@ def register_readers(register: RegisterReader) -> None:
     ``reader`` is a :class:`~ltc_cli.protocols.Reader`: ``reader.sniff(path) -> bool`` says whether
     a folder is in its layout (used to choose a reader automatically); ``reader.open(path, options:
     dict) -> Recording`` opens it, raising :class:`ltc_cli.errors.RecordingError` with the file at
-    fault when it cannot.
+    fault when it cannot. A reader that knows the poses without reading the images gives each
+    :class:`~ltc_cli.types.FrameRef` a ``pose`` callable: a still camera's frames are then judged
+    before loading and never read, detected, or sent to a Dask cluster.
     """

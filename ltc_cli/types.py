@@ -102,11 +102,18 @@ class Detection:
 
 @dataclass
 class FrameRef:
-    """A frame that is not loaded yet: ``load()`` reads and validates it (raises FrameError)."""
+    """A frame that is not loaded yet: ``load()`` reads and validates it (raises FrameError).
+
+    ``pose``, when a reader knows the poses without reading the images: ``pose()`` returns what
+    ``load().T_world_camera`` would (4, 4), or raises FrameError. The ingest then judges a still
+    camera's frames (ingest/keyframes.py) before loading them, and never loads or detects them;
+    None: judged once loaded.
+    """
 
     key: str
     index: int
     load: Callable[[], Frame]
+    pose: Callable[[], np.ndarray] | None = None
 
 
 @dataclass

@@ -101,14 +101,18 @@ class Drifted:
 def moved(ref, R_err, d_pos, key: str | None = None):
     """``ref`` whose loaded pose is off by a turn ``R_err`` (3, 3) of the camera about its own
     centre and a shift ``d_pos`` (3,), under the frame id ``key`` (default its own)."""
-    def load():
-        frame = ref.load()
-        T = frame.T_world_camera.copy()
+    def off(T):
+        T = T.copy()
         T[:3, :3] = R_err @ T[:3, :3]
         T[:3, 3] += d_pos
-        frame.T_world_camera = T
+        return T
+
+    def load():
+        frame = ref.load()
+        frame.T_world_camera = off(frame.T_world_camera)
         return frame
-    return replace(ref, key=ref.key if key is None else key, load=load)
+    pose = None if ref.pose is None else (lambda: off(ref.pose()))
+    return replace(ref, key=ref.key if key is None else key, load=load, pose=pose)
 
 
 class Stopped:

@@ -14,6 +14,7 @@ import pytest
 
 import ltc_cli.ingest.frame_setup as frame_setup
 import ltc_cli.ingest.remote as remote
+import ltc_cli.ingest.session as session_module
 import ltc_cli.recordings.writer as rec_writer
 import ltc_cli.tools.simulate as sim
 from ltc_cli import plugins
@@ -28,7 +29,7 @@ from ltc_cli.pipeline.visibility import ray_grid
 from ltc_cli.types import Intrinsics
 from tests.test_ingest import wait_for_file
 from tests.test_jobs import assert_same_map, corrupt_copy, run, summary_line
-from tests.test_still_frames import COPIES, N_FRAMES, with_still_copies
+from tests.test_still_frames import COPIES, N_FRAMES, poses_unknown, with_still_copies
 
 distributed = pytest.importorskip("distributed")
 
@@ -81,12 +82,19 @@ def test_dask_map_equals_the_single_process_map(laps, tmp_path, cluster):
     assert_same_map(ref, m)
 
 
-def test_still_frames_on_dask_make_the_single_process_map(tmp_path, cluster):
-    """The workers model a still camera's frames too (only the writer knows the last mapped pose);
-    the writer leaves them out as a single process does."""
+@pytest.mark.parametrize("poses_known", [True, False])
+def test_still_frames_on_dask_make_the_single_process_map(tmp_path, cluster, monkeypatch, poses_known):
+    """The writer judges a still camera's frames by the poses the reader knows before loading, and
+    never sends them to the workers; a reader that does not know them (a plugin's) has them
+    modeled there, and the writer leaves them out. Either way the map is a single process's."""
     rec = with_still_copies(tmp_path)
     a = ingest([rec], tmp_path / "one.h5", defaults())
+    if not poses_known:
+        monkeypatch.setattr(session_module, "open_recording", poses_unknown(session_module.open_recording))
+    modeled, real = [], remote.model_frame
+    monkeypatch.setattr(remote, "model_frame", lambda *args: modeled.append(1) or real(*args))
     b = ingest([rec], tmp_path / "dask.h5", defaults(), cluster=cluster)
+    assert len(modeled) == N_FRAMES + (0 if poses_known else COPIES)
     assert (a.frames_done, a.frames_still) == (b.frames_done, b.frames_still) == (N_FRAMES, COPIES)
     assert_same_map(tmp_path / "one.h5", tmp_path / "dask.h5")
 

@@ -323,3 +323,35 @@ def test_registered_names():
     readers.register_readers(register=lambda name, obj: got.setdefault(name, obj))
     assert sorted(got) == ["7scenes", "scannet", "tum"]
     assert all(callable(r.sniff) and callable(r.open) for r in got.values())
+
+
+@pytest.mark.parametrize("layout", ["tum", "7scenes", "scannet", "ltc-recording", "folder", "opengl-poses"])
+def test_each_frame_tells_the_pose_its_load_gives(tmp_path, layout):
+    """FrameRef.pose, read before the images (a still camera's frames are judged by it and never
+    loaded, ingest/keyframes.py): the very pose the frame's load gives, for every reader and with
+    the poses read in another convention."""
+    from ltc_cli.recordings.conventions import read_poses_as
+    from ltc_cli.recordings.open import open_recording
+
+    sample = Path(__file__).resolve().parent.parent / "sample_data" / "lap1"
+    made = {"tum": lambda: make_tum(tmp_path), "7scenes": lambda: make_7scenes(tmp_path) / "seq-01",
+            "scannet": lambda: make_scannet(tmp_path)}
+    if layout in made:
+        rec = open_recording(made[layout]())
+    elif layout == "folder":  # the sample's images and poses.txt, without recording.yaml
+        shutil.copytree(sample, tmp_path / "plain", ignore=shutil.ignore_patterns("recording.yaml"))
+        rec = open_recording(tmp_path / "plain", "folder", {"intrinsics": [525.0, 525.0, 319.5, 239.5]})
+    else:
+        rec = open_recording(sample)
+        if layout == "opengl-poses":
+            rec = read_poses_as(rec, "opengl")
+    assert rec.frames and all(ref.pose is not None for ref in rec.frames)
+    for ref in rec.frames[:6]:
+        try:
+            T = ref.load().T_world_camera
+        except FrameError as exc:  # a bad pose (7-Scenes' frame 1 is scaled, ScanNet's 2 lost): the same error
+            with pytest.raises(FrameError, match="not a rotation|non-finite") as err:
+                ref.pose()
+            assert (err.value.message, err.value.path) == (exc.message, exc.path)
+            continue
+        np.testing.assert_array_equal(ref.pose(), T)

@@ -68,6 +68,7 @@ def test_frames_pair_colour_and_depth_by_stamp_and_chain_tf(lap, tmp_path):
     assert [f.key for f in rec.frames] == list(keys)  # colour stamps, 4 ms after their depth
     lap_poses = [ln.split() for ln in (lap_dir / "poses.txt").read_text().splitlines() if ln.strip()]
     f = rec.frames[5].load()
+    np.testing.assert_array_equal(rec.frames[5].pose(), f.T_world_camera)  # known before the images are read
     want = np.array(lap_poses[5][1:], dtype=float)
     np.testing.assert_allclose(f.T_world_camera[:3, 3], want[:3], atol=1e-9)
     np.testing.assert_allclose(f.T_world_camera[:3, :3], Rotation.from_quat(want[3:]).as_matrix(), atol=1e-9)

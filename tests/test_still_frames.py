@@ -2,6 +2,7 @@
 ltc_cli/ingest/keyframes.py): the test by hand, the ingest that records them as done without
 mapping or detecting them, and a resume that goes on from the last mapped pose."""
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -17,6 +18,7 @@ from ltc_cli.cli import cli
 from ltc_cli.config import defaults, load_config
 from ltc_cli.ingest.keyframes import StillFrames, is_still, turn_degrees
 from ltc_cli.ingest.prefetch import Prefetch
+import ltc_cli.ingest.session as session_module
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
 from ltc_plugins.recorded import RecordedDetector
@@ -98,6 +100,14 @@ def with_still_copies(root: Path) -> Path:
     return rec
 
 
+def poses_unknown(open_recording):
+    """``open_recording`` whose frames do not tell their poses before loading (a plugin reader's)."""
+    def opened(*args, **kwargs):
+        rec = open_recording(*args, **kwargs)
+        return dataclasses.replace(rec, frames=[dataclasses.replace(r, pose=None) for r in rec.frames])
+    return opened
+
+
 def test_still_frames_are_done_not_mapped(tmp_path):
     rec = with_still_copies(tmp_path)
     s = ingest([rec], tmp_path / "still.h5", defaults())
@@ -148,6 +158,21 @@ def test_still_frames_are_not_detected(tmp_path, counting, jobs):
     # thread judges each loaded frame in order and has only the kept ones detected.
     assert {f"{STILL_AFTER}s{k}" for k in range(COPIES)}.isdisjoint(counting)
     assert sorted(counting) == sorted(set(counting)) and len(counting) == N_FRAMES
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+@pytest.mark.parametrize("poses_known", [True, False])
+def test_a_still_frame_whose_pose_is_known_is_never_read(tmp_path, monkeypatch, jobs, poses_known):
+    """The copies' images are damaged: read, each is a bad frame (skipped); judged by the pose the
+    reader knows before reading the images (ltc-recording's poses.txt), none is read."""
+    rec = with_still_copies(tmp_path)
+    for k in range(COPIES):
+        (rec / "depth" / f"{STILL_AFTER}s{k}.png").write_bytes(b"not a png")
+    if not poses_known:
+        monkeypatch.setattr(session_module, "open_recording", poses_unknown(session_module.open_recording))
+    s = ingest([rec], tmp_path / "m.h5", defaults(), jobs=jobs)
+    expect = (N_FRAMES, COPIES, 0) if poses_known else (N_FRAMES, 0, COPIES)
+    assert (s.frames_done, s.frames_still, s.frames_skipped) == expect
 
 
 def test_a_frame_kept_ahead_and_not_mapped_leaves_the_map_as_one_at_a_time(tmp_path, counting):
@@ -234,3 +259,36 @@ def test_the_look_ahead_judges_in_order_and_holds_its_window():
         ahead.close()
     assert got == [["0"], ["1"], ["2"], None, None, None, ["6"], ["7"], ["8"], ["9"]]
     assert sorted(det.keys) == ["0", "1", "2", "6", "7", "8", "9"]
+
+
+class PosedRef(Ref):
+    """A frame reference that knows its pose before loading, and counts its loads."""
+
+    loads: list = []
+
+    def pose(self):
+        return self.T
+
+    def load(self):
+        PosedRef.loads.append(self.key)
+        return super().load()
+
+
+def test_the_look_ahead_never_loads_a_still_frame_whose_pose_it_knows():
+    xs = [0.0, 0.05, 0.1, 0.1, 0.1, 0.1, 0.15, 0.2, 0.25, 0.3]  # frames 3-5 stand where frame 2 stands
+    refs = [PosedRef(str(k), pose((x, 0.0, 0.0))) for k, x in enumerate(xs)]
+    PosedRef.loads = []
+    det = KeyDetector()
+    still = StillFrames({"still_move": 0.02, "still_turn": 1.0}, 1)
+    ahead = Prefetch(refs, [r.key for r in refs], set(), det, jobs=2, keep=still.judge_ahead(0))
+    got = []
+    try:
+        for ref in refs:
+            if not still.still(0, ref.pose()):  # the session's own judgement, before it asks
+                frame, dets, *_ = ahead.take(ref)
+                still.mapped(0, frame.T_world_camera)
+                got.append(dets)
+    finally:
+        ahead.close()
+    assert got == [["0"], ["1"], ["2"], ["6"], ["7"], ["8"], ["9"]]
+    assert sorted(PosedRef.loads) == sorted(det.keys) == ["0", "1", "2", "6", "7", "8", "9"]

@@ -48,8 +48,8 @@ class RemoteAhead(Prefetch):
     """The look-ahead of one recording on a Dask cluster; ``take`` returns what
     ``load_and_detect`` does, with the frame's stage 1 in place of its detections."""
 
-    def __init__(self, refs, keys, done, job: RecordingJob, pool, lookahead: int, batch: int, should_stop):
-        super().__init__(refs, keys, done, None, 1, lookahead, pool=pool, task=FrameTask(job), batch=batch)
+    def __init__(self, refs, keys, done, job: RecordingJob, pool, lookahead: int, batch: int, should_stop, keep=None):
+        super().__init__(refs, keys, done, None, 1, lookahead, pool=pool, task=FrameTask(job), batch=batch, keep=keep)
         self.job = job
         self.should_stop = should_stop
 
@@ -94,15 +94,16 @@ class Cluster:
         """Worker threads in the cluster now (at least 1)."""
         return max(1, sum(self.client.nthreads().values()))
 
-    def ahead(self, setup, plan, classes: list[str], keys: list[str], done, should_stop) -> RemoteAhead:
+    def ahead(self, setup, plan, classes: list[str], keys: list[str], done, should_stop, keep=None) -> RemoteAhead:
         """The look-ahead of one recording (``setup``: a session.RecordingSetup) for a map whose
-        class list is ``classes``."""
+        class list is ``classes``; ``keep``: which frames a still camera's are, judged by the poses
+        the reader knows before loading (Prefetch), so that the workers are never sent them."""
         rec = setup.recording
         job = RecordingJob(str(rec.path), plan.reader, plan.reader_options, rec.identity, plan.settings,
                            tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range),
                            setup.depth_noise)
         return RemoteAhead(rec.frames, keys, done, job, self.executor, 2 * self.batch * self.threads(), self.batch,
-                           should_stop)
+                           should_stop, keep)
 
     def close(self) -> None:
         self.client.close()

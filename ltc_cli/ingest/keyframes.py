@@ -7,7 +7,9 @@ the rest of the route. On tum-fr1-rpy, the camera stopped for 150 frames at thre
 "laptop" where there is none, moved the second monitor's box 0.22 m and lost the white mouse
 (docs/decisions.md, issue 9, fifty-fourth round). A frame is mapped only when the camera has
 moved or turned enough since the last frame mapped, as keyframe-based mapping systems do; the
-frames in between are still, recorded as done, and not detected.
+frames in between are still, recorded as done, and not detected. Where the reader knows the poses
+without reading the images (``FrameRef.pose``), they are not even loaded, and a Dask cluster is
+never sent them.
 
 Pure numpy; the session (ingest/session.py) applies the decisions.
 """
@@ -17,6 +19,8 @@ from __future__ import annotations
 import json
 
 import numpy as np
+
+from ltc_cli.errors import FrameError
 
 
 def turn_degrees(R_a: np.ndarray, R_b: np.ndarray) -> float:
@@ -73,18 +77,30 @@ class StillFrames:
         return json.dumps([None if ref is None else ref.tolist() for ref in self.refs])
 
     def judge_ahead(self, recording: int):
-        """keep(frame) -> bool for a look-ahead that decides, in recording order, which of the
-        next frames to detect: a copy of this recording's reference, moved to each frame it keeps.
+        """keep(T_world_camera) -> bool for a look-ahead that decides, in recording order, which of
+        the next frames to detect: a copy of this recording's reference, moved to each frame it keeps.
         It agrees with :meth:`still` as long as every frame kept is mapped; where one is not (its
         detections were bad), the session's own decision stands (ingest/session.py)."""
         ahead = StillFrames({"still_move": self.min_move, "still_turn": self.min_turn}, 1, [self.refs[recording]])
 
-        def keep(frame) -> bool:
-            if ahead.still(0, frame.T_world_camera):
+        def keep(T_world_camera: np.ndarray) -> bool:
+            if ahead.still(0, T_world_camera):
                 return False
-            ahead.mapped(0, frame.T_world_camera)
+            ahead.mapped(0, T_world_camera)
             return True
         return keep
+
+
+def known_pose(ref) -> np.ndarray | None:
+    """The pose (4, 4) of a frame not loaded, when its reader knows it (``FrameRef.pose``); None
+    when it does not, or cannot read it (the frame's load then says why, at its turn)."""
+    pose = getattr(ref, "pose", None)
+    if pose is None:
+        return None
+    try:
+        return pose()
+    except FrameError:
+        return None
 
 
 def _is_pose(value) -> bool:

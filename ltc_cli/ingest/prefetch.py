@@ -8,6 +8,8 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+from ltc_cli.ingest.keyframes import known_pose
+
 
 def load_and_detect(det, lock=None, keep=None):
     """fetch(ref) -> (frame, detections, t0, t1, t2): load the frame (t0 -> t1), then detect (t1 ->
@@ -68,11 +70,14 @@ class Prefetch:
     look-ahead window are never loaded. Everything is submitted from the calling thread, so ``done``
     (the map's frame keys) is only read there.
 
-    ``keep(frame) -> bool`` (ingest/keyframes.py ``judge_ahead``) makes it two steps: the threads
-    load the frames, the calling thread judges each loaded frame in recording order (never out of
-    it: the judgement of a frame depends on those before it), and only the frames kept are
-    detected, in the threads; a frame not kept comes back with detections None. A still camera's
-    frames then cost their loading only, as they do without look-ahead.
+    ``keep(T_world_camera) -> bool`` (ingest/keyframes.py ``judge_ahead``) leaves a still camera's
+    frames undetected, judged in recording order (never out of it: the judgement of a frame depends
+    on those before it). When every ref knows its pose (``FrameRef.pose``), the frames are judged
+    as they come into the window, by the calling thread, and those not kept are never submitted:
+    not loaded, nor sent to a Dask cluster. Otherwise (local threads only) it is two steps: the
+    threads load the frames, the calling thread judges each loaded frame, and only the frames kept
+    are detected, in the threads; a frame not kept comes back with detections None, having cost
+    its loading only, as without look-ahead.
 
     ``pool`` and ``task`` replace the thread pool and ``load_and_detect``: any
     ``concurrent.futures.Executor`` (a Dask client's ``get_executor()``) and a callable
@@ -87,12 +92,14 @@ class Prefetch:
         self.keys = list(keys)
         self.done = done
         self.position = {id(r): i for i, r in enumerate(self.refs)}
-        self.keep = keep if task is None else None
+        self.by_pose = keep is not None and all(getattr(r, "pose", None) is not None for r in self.refs)
+        self.keep = keep if (task is None or self.by_pose) else None
+        self.two_step = self.keep is not None and not self.by_pose
         self.judged: dict = {}  # position -> (frame, detection future or None, t0, t1) or the load's error
         if task is None:
             lock = None if getattr(det, "thread_safe", False) else threading.Lock()
             self.detect = _timed_detect(det, lock)
-            if self.keep is not None:
+            if self.two_step:
                 task = lambda items: [_load(self.refs[j]) for j, _ in items]  # noqa: E731
             else:
                 fetch = load_and_detect(det, lock)
@@ -126,14 +133,16 @@ class Prefetch:
         while self.next < len(self.refs) and (self.next <= i or self._held() < self.lookahead):
             items = []
             while self.next < len(self.refs) and len(items) < self.batch:
-                if self.keys[self.next] not in self.done:
-                    items.append((self.next, self.refs[self.next].key))
+                j = self.next
                 self.next += 1
+                if self.keys[j] in self.done or (self.by_pose and not self._kept(self.refs[j])):
+                    continue
+                items.append((j, self.refs[j].key))
             if items:
                 self._submit(items)
         if i not in self.pending and i not in self.judged:  # not submitted (its key was already in the map then)
             self._submit([(i, ref.key)])
-        if self.keep is None:
+        if not self.two_step:
             fut, k = self.pending.pop(i)
             return self.wait(fut)[k]
         self._judge(i)
@@ -145,6 +154,12 @@ class Prefetch:
             return frame, None, t0, t1, t1
         dets, decode, seconds = self.wait(det_fut)
         return frame, dets, t0, t1 + decode, t1 + decode + seconds
+
+    def _kept(self, ref) -> bool:
+        """Judged by its pose as it comes into the window; a pose that cannot be read is kept (its
+        load says why, at its turn)."""
+        T = known_pose(ref)
+        return T is None or self.keep(T)
 
     def _held(self) -> int:
         """Frames loading, or loaded and judged, ahead of the caller."""
@@ -165,7 +180,7 @@ class Prefetch:
             except Exception as exc:  # noqa: BLE001  (a bad frame: raised again when taken)
                 self.judged[j] = exc
                 continue
-            det_fut = self.pool.submit(self.detect, frame) if self.keep(frame) else None
+            det_fut = self.pool.submit(self.detect, frame) if self.keep(frame.T_world_camera) else None
             self.judged[j] = (frame, det_fut, t0, t1)
 
     def detect_now(self, frame):

@@ -53,7 +53,7 @@ def sample_frames_of(rec: Recording, n: int) -> list:
             continue
         out.append(frame)
         if isinstance(rec.frames, list):
-            rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load))
+            rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load), ref.pose)
     return out
 
 
@@ -66,5 +66,5 @@ def load_kept(rec: Recording, i: int):
     except FrameError:
         return None
     if isinstance(rec.frames, list):
-        rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load))
+        rec.frames[i] = FrameRef(ref.key, ref.index, _hand_out_once(frame, ref.load), ref.pose)
     return frame

@@ -33,7 +33,7 @@ from ltc_cli import plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
-from ltc_cli.ingest.keyframes import StillFrames
+from ltc_cli.ingest.keyframes import StillFrames, known_pose
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.ingest.session_row import now_iso, session_row
 from ltc_cli.map.model import SemanticMap
@@ -239,6 +239,13 @@ def detections_source(det, frame) -> str:
     return str(frame.rgb_path or frame.key)
 
 
+def _still_frame(smap: SemanticMap, key: str, summary: IngestSummary, row: dict) -> None:
+    """A still camera's frame: done (a re-run skips it), counted, not mapped."""
+    smap.frame_keys.add(key)
+    summary.frames_still += 1
+    row["frames_still"] = int(row.get("frames_still") or 0) + 1
+
+
 def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> IngestSummary:
     n_sessions = len(smap.sessions)
     session, row = session_row(smap, plan)
@@ -260,7 +267,8 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             T_up = setup.T_up
             keys = [frame_key(rec.identity, ref.key, summary.visit) for ref in rec.frames]
             if opts.cluster is not None:
-                ahead = opts.cluster.ahead(setup, plan, smap.classes, keys, smap.frame_keys, opts.should_stop)
+                ahead = opts.cluster.ahead(setup, plan, smap.classes, keys, smap.frame_keys, opts.should_stop,
+                                           keep=still.judge_ahead(r))
             elif opts.jobs > 1:
                 ahead = Prefetch(rec.frames, keys, smap.frame_keys, det, opts.jobs, keep=still.judge_ahead(r))
             fetch = ahead.take if ahead is not None else load_and_detect(
@@ -272,6 +280,11 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     break
                 if key in smap.frame_keys:
                     summary.frames_already += 1
+                    opts.tick()
+                    continue
+                T_known = known_pose(ref)
+                if T_known is not None and still.still(r, T_known):  # done, not loaded
+                    _still_frame(smap, key, summary, row)
                     opts.tick()
                     continue
                 try:
@@ -295,9 +308,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 _report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
                 if still.still(r, frame.T_world_camera):  # done, not mapped (nor detected)
-                    smap.frame_keys.add(key)
-                    summary.frames_still += 1
-                    row["frames_still"] = int(row.get("frames_still") or 0) + 1
+                    _still_frame(smap, key, summary, row)
                     opts.tick()
                     continue
                 stage["detect"] += t2 - t1

@@ -20,6 +20,10 @@ def _converted(load, fn):
     return load_converted
 
 
+def _converted_pose(pose, fn):
+    return None if pose is None else (lambda: fn(pose()))
+
+
 def read_poses_as(rec: Recording, name) -> Recording:
     """``rec`` with every frame's pose read as the convention ``name`` says the file holds it. Its
     identity changes with it: frames read one way are not the frames read the other way."""
@@ -27,6 +31,7 @@ def read_poses_as(rec: Recording, name) -> Recording:
         raise RecordingError(f"-r pose_convention={name}: not a pose convention ltc knows (one of: "
                              f"{', '.join(READINGS)})", rec.path)
     fn = READINGS[name][1]
-    frames = [FrameRef(ref.key, ref.index, _converted(ref.load, fn)) for ref in rec.frames]
+    frames = [FrameRef(ref.key, ref.index, _converted(ref.load, fn), _converted_pose(ref.pose, fn))
+              for ref in rec.frames]
     return replace(rec, frames=frames, identity=f"{rec.identity}+poses={name}",
                    meta={**rec.meta, "pose_convention": name})

@@ -347,6 +347,6 @@ def load_frame(src: FrameSource, index: int, fmt: ImageFormat) -> Frame:
 def frame_refs(sources: Iterable[FrameSource], fmt: ImageFormat) -> list[FrameRef]:
     """The recording's frames, in order, each loaded lazily by :func:`load_frame`."""
     return [
-        FrameRef(key=src.key, index=index, load=partial(load_frame, src, index, fmt))
+        FrameRef(key=src.key, index=index, load=partial(load_frame, src, index, fmt), pose=src.pose)
         for index, src in enumerate(sources)
     ]

@@ -247,7 +247,8 @@ class RosbagReader:
             if key in seen:  # two colour images with one stamp: the first one is the frame
                 continue
             seen.add(key)
-            refs.append(FrameRef(key, len(refs), _FrameLoad(loader, key, len(refs), c, depths[int(d_idx[i])])))
+            load = _FrameLoad(loader, key, len(refs), c, depths[int(d_idx[i])])
+            refs.append(FrameRef(key, len(refs), load, pose=load.pose))
         if not refs:
             raise RecordingError(f"no {color_topic} image has a {depth_topic} image within "
                                  f"{opts['max_time_diff']} s", p)
@@ -295,13 +296,17 @@ class _Loader:
     camera_frame: str
     max_gap_ns: int
 
+    def pose(self, depth: _Msg) -> np.ndarray:
+        """T_world_camera (4, 4) at the depth image's stamp, from the bag's tf (FrameError if none)."""
+        try:
+            return self.tree.lookup(self.world_frame, self.camera_frame, depth.stamp_ns, self.max_gap_ns)
+        except TfLookupError as exc:
+            raise FrameError(f"{self.depth_topic} at {depth.stamp_ns / 1e9:.3f} s: {exc}", self.bag.path) from None
+
     def frame(self, key: str, index: int, color: _Msg, depth: _Msg) -> Frame:
         bag, intr = self.bag, self.intrinsics
         where = f"{self.depth_topic} at {depth.stamp_ns / 1e9:.3f} s"
-        try:
-            T = self.tree.lookup(self.world_frame, self.camera_frame, depth.stamp_ns, self.max_gap_ns)
-        except TfLookupError as exc:
-            raise FrameError(f"{where}: {exc}", bag.path) from None
+        T = self.pose(depth)
         try:
             depth_m = _decode_depth(bag.read(self.depth_topic, depth), bag.msgtype(self.depth_topic), self.depth_scale)
             where = f"{self.color_topic} at {color.stamp_ns / 1e9:.3f} s"
@@ -331,6 +336,9 @@ class _FrameLoad:
 
     def __call__(self) -> Frame:
         return self.loader.frame(self.key, self.index, self.color, self.depth)
+
+    def pose(self) -> np.ndarray:
+        return self.loader.pose(self.depth)
 
 
 @hookimpl
