@@ -153,15 +153,28 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
     )
 
 
+def still_text(counted: dict) -> str:
+    """``ltc check``'s line on a still camera's frames (recording_check.still_frames)."""
+    from ltc_cli.ingest.recording_check import still_rule
+
+    if counted["move_m"] is None or counted["turn_deg"] is None:
+        text = "none: every frame is mapped (frames.still_move or still_turn is null)"
+    else:
+        text = f"{plural(counted['still'], 'frame')}, not mapped: {still_rule(counted)}"
+    return text + (f"; {plural(counted['unknown'], 'frame')} without a readable pose" if counted["unknown"] else "")
+
+
 @cli.command("check")
 @click.argument("recording", type=click.Path())
 @click.option("--format", "reader", help="Recording reader (default: detected).")
 @click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=READER_OPTION_HELP)
+@click.option("--config", "config_file", type=click.Path(dir_okay=False), help="YAML file of settings (the frames and modeling sections).")
+@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Override one setting, e.g. --set frames.still_move=null")
 @click.option("--json", "as_json", is_flag=True, help="Print it as JSON.")
-def check_cmd(recording, reader, reader_opts, as_json):
+def check_cmd(recording, reader, reader_opts, config_file, sets, as_json):
     """Say what an ingest would take from RECORDING, without mapping it: the camera, the depth range
-    and error, the up axis and floor, and whether its poses fit its depth (a few frames are read;
-    nothing is written)."""
+    and error, the up axis and floor, whether its poses fit its depth, and how many frames a still
+    camera's are (a few frames are read; nothing is written)."""
     from ltc_cli.cli import camera_text
     from ltc_cli.ingest.recording_check import check_recording
     from ltc_cli.recordings.open import open_recording
@@ -172,19 +185,23 @@ def check_cmd(recording, reader, reader_opts, as_json):
         warnings.append(message)
         warn_line(message)
 
-    doc = check_recording(open_recording(recording, reader, reader_options(reader_opts)), warn=warn)
+    cfg = load_config(config_file, sets)
+    doc = check_recording(open_recording(recording, reader, reader_options(reader_opts)), warn=warn,
+                          frames_settings=cfg["frames"])
     doc["warnings"] = warnings
     if as_json:
         click.echo(json.dumps(doc, indent=2))
     else:
         up, poses = doc["up"], doc["poses"]
         x, y, z = up["direction"]
-        m_cfg = load_config(None)["modeling"]
+        m_cfg = cfg["modeling"]
         depth = (f"{doc['depth_range'][0]:g}-{doc['depth_range'][1]:g} m (the recording's range)"
                  if doc["depth_range"] else f"{m_cfg['min_depth']:g}-{m_cfg['max_depth']:g} m (the settings' "
                                             "modeling.min_depth and max_depth)")
         click.echo(f"recording    {doc['recording']}  ({doc['reader']}, {plural(doc['frames'], 'frame')})")
         click.echo(f"camera       {camera_text(doc['camera'])}")
+        if doc["still_frames"] is not None:
+            click.echo(f"still        {still_text(doc['still_frames'])}")
         click.echo(f"depth        {depth}")
         click.echo(f"up           {up['how']}: map +z = the recording's ({x:.3f}, {y:.3f}, {z:.3f}), "
                    f"{up['tilt_deg']:.1f} deg from its +z")

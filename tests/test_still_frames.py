@@ -82,16 +82,16 @@ def test_a_session_rows_poses_are_read_or_dropped(text, kept):
     assert [still.still(k, np.eye(4)) for k in range(2)] == kept
 
 
-def with_still_copies(root: Path) -> Path:
-    """sample_data/lap1 with the camera stopped after frame STILL_AFTER for COPIES frames: the same
-    images, detections and pose again under new frame ids."""
+def with_still_copies(root: Path, copies: int = COPIES) -> Path:
+    """sample_data/lap1 with the camera stopped after frame STILL_AFTER for ``copies`` frames: the
+    same images, detections and pose again under new frame ids."""
     rec = root / "still"
     shutil.copytree(LAP1, rec)
     lines = []
     for line in (LAP1 / "poses.txt").read_text().splitlines():
         lines.append(line)
         if line.split()[0] == STILL_AFTER:
-            for k in range(COPIES):
+            for k in range(copies):
                 fid = f"{STILL_AFTER}s{k}"
                 lines.append(line.replace(STILL_AFTER, fid, 1))
                 for sub, ext in (("rgb", "png"), ("depth", "png"), ("detections", "json")):
@@ -292,3 +292,30 @@ def test_the_look_ahead_never_loads_a_still_frame_whose_pose_it_knows():
         ahead.close()
     assert got == [["0"], ["1"], ["2"], ["6"], ["7"], ["8"], ["9"]]
     assert sorted(PosedRef.loads) == sorted(det.keys) == ["0", "1", "2", "6", "7", "8", "9"]
+
+
+def test_check_counts_the_still_frames_and_warns_of_a_camera_fixed_in_place(tmp_path):
+    rec = with_still_copies(tmp_path)
+    r = CliRunner().invoke(cli, ["check", str(rec)])
+    assert r.exit_code == 0, r.output
+    assert (f"still        {COPIES} frames, not mapped: the camera moved under 0.02 m and turned under 1 degree "
+            "since the last frame kept") in r.output
+    assert r.output.rstrip().endswith("ready to ingest")
+    doc = json.loads(CliRunner().invoke(cli, ["check", str(rec), "--json"]).stdout)
+    assert doc["still_frames"] == {"still": COPIES, "unknown": 0, "move_m": 0.02, "turn_deg": 1.0}
+    # A frame without a pose: an ingest skips it, and the check says so.
+    poses = (rec / "poses.txt").read_text().splitlines()
+    poses[3] = poses[3].split()[0] + " nan nan nan 0 0 0 1"
+    (rec / "poses.txt").write_text("\n".join(poses) + "\n")
+    doc = json.loads(CliRunner().invoke(cli, ["check", str(rec), "--json"]).stdout)
+    assert (doc["still_frames"]["still"], doc["still_frames"]["unknown"]) == (COPIES, 1)
+    # The camera standing at frame 10 for 80 frames, against 76 that move: most are still.
+    fixed = with_still_copies(tmp_path / "fixed", copies=80)
+    r = CliRunner().invoke(cli, ["check", str(fixed)])
+    assert ("warning: 80 of 156 frames are still (the camera moved under 0.02 m and turned under 1 degree since "
+            "the last frame kept) and would not be mapped; for a camera fixed in place, --set "
+            "frames.still_move=null maps every frame") in r.output
+    assert r.output.rstrip().endswith("1 warning (above)")
+    r = CliRunner().invoke(cli, ["check", str(fixed), "--set", "frames.still_move=null"])
+    assert "still        none: every frame is mapped (frames.still_move or still_turn is null)" in r.output
+    assert r.output.rstrip().endswith("ready to ingest")
