@@ -1,6 +1,6 @@
-"""Where the real recordings and models are: ``../shared`` beside the repository (as the other tests
-look for it), else the folder named by the environment variable LTC_SHARED, else /work/shared
-(a git worktree of the repository sits deeper than ``../``)."""
+"""Where the real recordings and models are, for every test that reads them: the folder named by the
+environment variable LTC_SHARED, else ``../shared`` beside the repository, else /work/shared (a git
+worktree of the repository sits elsewhere than beside it)."""
 
 from __future__ import annotations
 

@@ -20,6 +20,7 @@ from ltc_cli.recordings.open import open_recording
 from ltc_cli.map.model import top_class
 from ltc_cli.pipeline.frame_modeling import ClassFlags, model_frame, sensor_depth_noise
 from tests.scene import INTR, T_world_camera, render
+from tests.shared_data import SHARED
 
 FX = FY = 525.0
 CX, CY = 319.5, 239.5
@@ -162,7 +163,7 @@ def test_an_ingest_uses_what_it_measured_on_each_recording(tmp_path, monkeypatch
     assert json.loads(load_map(m).sessions[0]["cameras"])[0]["depth_noise"] == 0.0123
 
 
-TUM = Path(__file__).resolve().parents[2] / "shared" / "data" / "tum-fr1-rpy"
+TUM = SHARED / "data" / "tum-fr1-rpy"
 
 
 def test_tum_fr1_rpy_measures_as_a_kinect_and_with_a_stereo_error_added():

@@ -13,8 +13,8 @@ from click.testing import CliRunner
 from ltc_cli.cli import cli
 from ltc_cli.map.model import ACTIVE
 from ltc_cli.map.store import load_map
+from tests.shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 DATA = SHARED / "data" / "dining-room"
 MODEL = SHARED / "models" / "yolov8n-seg_int8.onnx"
 

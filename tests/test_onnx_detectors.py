@@ -22,8 +22,8 @@ from ltc_cli.types import Frame, Intrinsics  # noqa: E402
 from ltc_plugins.onnx import maskrcnn as onnx_maskrcnn, yolo_seg as onnx_yolo_seg  # noqa: E402
 from ltc_plugins.onnx.maskrcnn import COCO_CLASSES, MaskRcnnDetector, paste_mask  # noqa: E402
 from ltc_plugins.onnx.yolo_seg import YoloSegDetector, nms  # noqa: E402
+from tests.shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 REAL_MODEL = SHARED / "models" / "yolov8n-seg_int8.onnx"
 DINING_RGB = SHARED / "data" / "dining-room" / "color" / "1.png"
 

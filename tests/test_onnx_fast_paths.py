@@ -9,7 +9,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,10 +16,8 @@ from PIL import Image
 
 from ltc_plugins.onnx import common as onnx_common, yolo_seg
 from ltc_plugins.onnx.resize import PRECISION_BITS, edge_coefficients, resize_bilinear
+from tests.shared_data import SHARED
 
-# ../shared beside the checkout (a worktree under wt/ has it one level further up)
-HERE = Path(__file__).resolve()
-SHARED = next((p / "shared" for p in HERE.parents[2:4] if (p / "shared").is_dir()), HERE.parents[2] / "shared")
 FP32_MODEL = SHARED / "models" / "yolov8n-seg_fp32.onnx"
 TUM_RGB = SHARED / "data" / "tum-fr1-rpy" / "rgb"
 

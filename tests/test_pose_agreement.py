@@ -20,10 +20,11 @@ from ltc_cli.map.store import load_map
 from ltc_cli.recordings.open import open_recording
 from ltc_cli.recordings.writer import RecordingWriter
 from ltc_cli.types import Intrinsics
+from tests.shared_data import SHARED
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data" / "lap1"
-TUM = ROOT.parent / "shared" / "data" / "tum-fr1-rpy"
+TUM = SHARED / "data" / "tum-fr1-rpy"
 INTR = Intrinsics(640, 480, 500.0, 500.0, 320.0, 240.0)
 _GL = np.diag([1.0, -1.0, -1.0, 1.0])
 _BODY = np.eye(4)

@@ -8,7 +8,6 @@ The detector runs once per frame; later passes replay its detections (it is dete
 """
 
 import shutil
-from pathlib import Path
 
 import pytest
 
@@ -20,8 +19,8 @@ from ltc_cli.map.store import load_map
 from tests.real_ghosts import GHOSTS, MOVES, active_ids, plant, still_there
 from tests.real_truth import check
 from tests.replay import Drifted, Reordered, Replay
+from tests.shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 DATA = SHARED / "data" / "tum-fr1-rpy"
 MODEL = SHARED / "models" / "yolov8n-seg_fp32.onnx"
 

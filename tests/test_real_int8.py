@@ -14,7 +14,6 @@ stand rules do not take (letting them took a keyboard into a phantom "suitcase" 
 Skipped when ../shared is absent.
 """
 
-from pathlib import Path
 
 import pytest
 
@@ -25,8 +24,8 @@ from ltc_cli.map.store import load_map
 from tests.real_truth import APART, COUNTS, check, merged_pairs
 from tests.replay import Reordered, Replay
 from tests.test_real_revisits import census
+from tests.shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 DATA = SHARED / "data" / "tum-fr1-rpy"
 MODEL = SHARED / "models" / "yolov8n-seg_int8.onnx"
 

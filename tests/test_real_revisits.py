@@ -24,8 +24,8 @@ from ltc_cli.map.store import load_map
 from ltc_cli.recordings.open import open_recording
 from tests.real_truth import APART, COUNTS, NEAR, TUM_FR1_RPY, box_gaps, check, merged_pairs
 from tests.replay import Drifted, Reordered, Replay, Stopped
+from tests.shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 DATA = SHARED / "data" / "tum-fr1-rpy"
 MODEL = SHARED / "models" / "yolov8n-seg_fp32.onnx"
 

@@ -4,7 +4,6 @@ map frame taken from the session that ingested the recording, the real tum-fr1-r
 ../shared is there), and the command line's picture, summary and errors."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +22,7 @@ from ltc_cli.recordings.writer import RecordingWriter
 from ltc_cli.types import Intrinsics
 from tests.real_truth import TUM_FR1_RPY
 from tests.sample_maps import SESSION, add
+from tests.shared_data import SHARED
 
 INTR = Intrinsics(640, 480, 500.0, 500.0, 320.0, 240.0)
 # The camera at the map's origin looking along +x (OpenCV axes: x right = -y of the map, y down =
@@ -221,7 +221,6 @@ def test_cli_errors_are_one_line(scene, tmp_path):
     assert not list(tmp_path.glob("s.*"))
 
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 TUM = SHARED / "data" / "tum-fr1-rpy"
 
 
