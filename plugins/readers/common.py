@@ -11,7 +11,7 @@ instead of ending the ingest.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Callable, Iterable
@@ -344,9 +344,25 @@ def load_frame(src: FrameSource, index: int, fmt: ImageFormat) -> Frame:
     )
 
 
+class _PoseOnce:
+    """A frame's ``pose()``, read once: the ingest asks for it before loading (a still camera's
+    frames, ingest/keyframes.py), the look-ahead too, and the load again; a TUM pose is a slerp
+    (about 1 ms). An error is not kept: it is raised again at the next call."""
+
+    def __init__(self, pose: Callable[[], np.ndarray]):
+        self.pose, self.T = pose, None
+
+    def __call__(self) -> np.ndarray:
+        if self.T is None:
+            self.T = self.pose()
+        return self.T.copy()
+
+
 def frame_refs(sources: Iterable[FrameSource], fmt: ImageFormat) -> list[FrameRef]:
     """The recording's frames, in order, each loaded lazily by :func:`load_frame`."""
-    return [
-        FrameRef(key=src.key, index=index, load=partial(load_frame, src, index, fmt), pose=src.pose)
-        for index, src in enumerate(sources)
-    ]
+    refs = []
+    for index, src in enumerate(sources):
+        pose = _PoseOnce(src.pose)
+        src = replace(src, pose=pose)
+        refs.append(FrameRef(key=src.key, index=index, load=partial(load_frame, src, index, fmt), pose=pose))
+    return refs
