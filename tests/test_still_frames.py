@@ -241,13 +241,18 @@ class KeyDetector:
         return [frame.key]
 
 
-def test_the_look_ahead_judges_in_order_and_holds_its_window():
-    # Ten frames 5 cm apart, but frames 3-5 stand where frame 2 stands.
+def look_ahead(ref_type) -> tuple:
+    """(refs, detector, still frames, look-ahead) over ten frames 5 cm apart, but frames 3-5 stand
+    where frame 2 stands."""
     xs = [0.0, 0.05, 0.1, 0.1, 0.1, 0.1, 0.15, 0.2, 0.25, 0.3]
-    refs = [Ref(str(k), pose((x, 0.0, 0.0))) for k, x in enumerate(xs)]
+    refs = [ref_type(str(k), pose((x, 0.0, 0.0))) for k, x in enumerate(xs)]
     det = KeyDetector()
     still = StillFrames({"still_move": 0.02, "still_turn": 1.0}, 1)
-    ahead = Prefetch(refs, [r.key for r in refs], set(), det, jobs=2, keep=still.judge_ahead(0))
+    return refs, det, still, Prefetch(refs, [r.key for r in refs], set(), det, jobs=2, keep=still.judge_ahead(0))
+
+
+def test_the_look_ahead_judges_in_order_and_holds_its_window():
+    refs, det, _, ahead = look_ahead(Ref)
     got = []
     try:
         for ref in refs:
@@ -275,12 +280,8 @@ class PosedRef(Ref):
 
 
 def test_the_look_ahead_never_loads_a_still_frame_whose_pose_it_knows():
-    xs = [0.0, 0.05, 0.1, 0.1, 0.1, 0.1, 0.15, 0.2, 0.25, 0.3]  # frames 3-5 stand where frame 2 stands
-    refs = [PosedRef(str(k), pose((x, 0.0, 0.0))) for k, x in enumerate(xs)]
     PosedRef.loads = []
-    det = KeyDetector()
-    still = StillFrames({"still_move": 0.02, "still_turn": 1.0}, 1)
-    ahead = Prefetch(refs, [r.key for r in refs], set(), det, jobs=2, keep=still.judge_ahead(0))
+    refs, det, still, ahead = look_ahead(PosedRef)
     got = []
     try:
         for ref in refs:
