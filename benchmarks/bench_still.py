@@ -56,6 +56,9 @@ class BenchPlugin:
         register("replay-yolo", Replay)
 
 
+READERS = (("stopped", "poses known before loading"), ("stopped-hidden", "judged once loaded"))
+
+
 def table(m: Path) -> np.ndarray:
     c = load_map(m).objects.columns()
     return np.concatenate([c["center"], c["size"], c["scores"]], axis=1)
@@ -89,7 +92,7 @@ def main():
         try:
             for rep in range(args.repeat):
                 maps = {}
-                for reader, label in (("stopped", "poses known before loading"), ("stopped-hidden", "judged once loaded")):
+                for reader, label in READERS:
                     m = tmp / f"{reader}-{rep}.h5"
                     c0, w0 = time.process_time(), time.perf_counter()
                     s = ingest([path], m, cfg, reader=reader, **kw)

@@ -41,8 +41,8 @@ def still_frames(rec, frames_settings: dict) -> dict | None:
 def still_rule(counted: dict) -> str:
     """The still-frame rule in words, for people."""
     turn = counted["turn_deg"]
-    return (f"the camera moved under {counted['move_m']:g} m and turned under {turn:g} degree{'' if turn == 1 else 's'} "
-            "since the last frame kept")
+    degrees = f"{turn:g} degree{'' if turn == 1 else 's'}"
+    return f"the camera moved under {counted['move_m']:g} m and turned under {degrees} since the last frame kept"
 
 
 def still_warning(rec, counted: dict | None) -> str | None:
