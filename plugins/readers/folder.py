@@ -7,11 +7,13 @@ Layout (every name can be changed with an option):
 ```
 color/<stem>.png|jpg     (or colour/, rgb/, image/, images/)
 depth/<stem>.png|pgm|tif 16-bit, metres = value / depth_scale (default 1000: millimetres); 0 = none
-pose.txt                 (or poses.txt, trajectory.txt): T_world_camera, OpenCV camera axes, one line
-                         per frame, any of
+pose.txt                 (or poses.txt, trajectory.txt, trajectory.log): T_world_camera, OpenCV
+                         camera axes, one line per frame, any of
                            tx ty tz qx qy qz qw          line N = the N-th colour image (natural order)
                            stem tx ty tz qx qy qz qw     the frame named by its first field
                            12 or 16 numbers              a 3x4 (KITTI) or 4x4 matrix, row-major, by order
+                         or five lines per frame, as Open3D and the Redwood datasets write
+                         trajectory.log: three numbers (metadata), then the 4x4 matrix's four rows
 ```
 """
 
@@ -32,7 +34,7 @@ from ltc_plugins.readers.common import (
 )  # fmt: skip
 
 COLOR_DIRS = ("color", "colour", "rgb", "image", "images")
-POSE_FILES = ("pose.txt", "poses.txt", "trajectory.txt")
+POSE_FILES = ("pose.txt", "poses.txt", "trajectory.txt", "trajectory.log")
 COLOR_EXT = (".png", ".jpg", ".jpeg")
 DEPTH_EXT = (".png", ".pgm", ".tif", ".tiff")
 
@@ -95,6 +97,9 @@ def read_pose_lines(path: Path, stems: list[str]) -> dict[str, tuple[str, list[s
     counts = {len(fields) for _, fields in rows}
     if not rows:
         raise RecordingError("the pose file has no poses", path)
+    if counts == {3, 4}:
+        rows = log_blocks(rows, path)
+        counts = {16}
     if len(counts) != 1 or counts - {7, 8, 12, 16}:
         raise RecordingError(
             f"pose lines must all have 7 (tx ty tz qx qy qz qw), 8 (frame and those 7), 12 (3x4) or 16 (4x4) "
@@ -111,7 +116,18 @@ def read_pose_lines(path: Path, stems: list[str]) -> dict[str, tuple[str, list[s
         raise RecordingError(
             f"{len(rows)} pose lines for {len(stems)} colour images: without frame names line N is the N-th "
             "image, so the counts must agree (or put each frame's name first on its line)", path)
-    return {stem: (f"line {n}", fields) for stem, (n, fields) in zip(stems, rows)}
+    return {stem: (n if isinstance(n, str) else f"line {n}", fields) for stem, (n, fields) in zip(stems, rows)}
+
+
+def log_blocks(rows: list, path: Path) -> list:
+    """Open3D's / Redwood's trajectory.log: per frame, a line of three numbers (metadata) and the 4x4
+    camera-to-world matrix's four rows; as ("lines a-b", the matrix's 16 fields) rows, one per frame."""
+    shapes = [len(fields) for _, fields in rows]
+    if len(rows) % 5 or any(shapes[k:k + 5] != [3, 4, 4, 4, 4] for k in range(0, len(rows), 5)):
+        raise RecordingError("a trajectory.log gives each frame as a line of three numbers, then four lines of "
+                             "four (the 4x4 matrix's rows)", path)
+    return [(f"lines {rows[k][0]}-{rows[k + 4][0]}", [f for _, fields in rows[k + 1:k + 5] for f in fields])
+            for k in range(0, len(rows), 5)]
 
 
 def pose_of(path: Path, where: str, fields: list[str]):
