@@ -70,8 +70,9 @@ def test_named_pose_lines_and_matrices(tmp_path):
 
 
 def log_text(Ts) -> str:
-    """Open3D's trajectory.log of the camera-to-world matrices Ts: metadata, then four rows each."""
-    return "".join(f"{k} {k} {len(Ts)}\n" + "".join(" ".join(repr(float(v)) for v in row) + "\n" for row in T)
+    """Open3D's trajectory.log of the camera-to-world matrices Ts, as Open3D writes it
+    (WritePinholeCameraTrajectoryToLOG: "i i i+1", then the rows with 8 decimals)."""
+    return "".join(f"{k} {k} {k + 1}\n" + "".join(" ".join(f"{v:.8f}" for v in row) + "\n" for row in T)
                    for k, T in enumerate(Ts))
 
 
