@@ -97,6 +97,32 @@ def test_open3d_trajectory_log(tmp_path):
         FolderReader().open(root, {"intrinsics": "5,6,3,2"}).frames[0].load()
 
 
+def test_replica_layout_by_patterns_and_numbers(tmp_path):
+    """Replica as NICE-SLAM distributes it: results/frame%06d.jpg and results/depth%06d.png in one
+    folder, traj.txt with a 4x4 camera-to-world matrix per line."""
+    res = tmp_path / "room0" / "results"
+    res.mkdir(parents=True)
+    for i in (0, 1, 12):
+        Image.fromarray(np.full((H, W, 3), 10 * i, np.uint8)).save(res / f"frame{i:06d}.jpg")
+        Image.fromarray(np.full((H, W), 6553 + i, np.uint16)).save(res / f"depth{i:06d}.png")
+    T = [np.eye(4), pose_matrix([1.0, 2.0, 3.0], [0.0, 0.0, 0.0, 1.0]), np.eye(4)]
+    T[2][:3, 3] = [0.0, 0.0, -1.0]
+    (tmp_path / "room0" / "traj.txt").write_text("".join(" ".join(f"{v:.8f}" for v in M.ravel()) + "\n" for M in T))
+    opts = {"intrinsics": "600,600,599.5,339.5", "color": "results/frame*.jpg", "depth": "results/depth*.png",
+            "poses": "traj.txt", "depth_scale": 6553.5}
+    rec = FolderReader().open(tmp_path / "room0", opts)
+    assert [f.key for f in rec.frames] == ["frame000000", "frame000001", "frame000012"]
+    f = rec.frames[2].load()  # frame 12 pairs with depth 12 (6553 + 12), the third pose line
+    assert f.depth_m[0, 0] == pytest.approx(6565 / 6553.5)
+    np.testing.assert_allclose(f.T_world_camera[:3, 3], [0.0, 0.0, -1.0])
+    np.testing.assert_allclose(rec.frames[1].load().T_world_camera[:3, 3], [1.0, 2.0, 3.0])
+    # Two depth images of one number cannot be paired by it.
+    Image.fromarray(np.full((H, W), 1, np.uint16)).save(res / "depth_1.png")
+    with pytest.raises(RecordingError, match="two depth images are numbered 1"):
+        FolderReader().open(tmp_path / "room0", opts)
+    assert len(FolderReader().open(tmp_path / "room0", {**opts, "depth": "results/depth0*.png"}).frames) == 3
+
+
 def test_plain_folder_errors(tmp_path):
     root = write_folder(tmp_path / "rec", ["1", "2"], ["0 0 0 0 0 0 1"])
     with pytest.raises(RecordingError, match="intrinsics=FX,FY,CX,CY"):
@@ -132,16 +158,28 @@ def assert_same_objects(a, b, tol=1e-3):
         assert abs(ya - yb) < 1e-3
 
 
-@pytest.mark.parametrize("pose_file", ["pose.txt", "trajectory.log"])
+@pytest.mark.parametrize("pose_file", ["pose.txt", "trajectory.log", "traj.txt"])
 def test_simulated_lap_as_a_plain_folder_maps_like_the_lap(tmp_path, pose_file):
     root = tmp_path / "plain"
     root.mkdir()
-    (root / "color").symlink_to(LAP1 / "rgb")
-    (root / "depth").symlink_to(LAP1 / "depth")
+    extra, dets = [], LAP1 / "detections"
+    if pose_file == "traj.txt":  # Replica's layout: both kinds in results/, named frame* and depth*
+        (root / "results").mkdir()
+        dets = tmp_path / "dets"  # the recorded detections under the frames' names
+        dets.mkdir()
+        for sub, prefix, folder in (("rgb", "frame", root / "results"), ("depth", "depth", root / "results"),
+                                    ("detections", "frame", dets)):
+            for p in (LAP1 / sub).iterdir():
+                (folder / f"{prefix}{p.name}").symlink_to(p)
+        extra = ["--format", "folder", "-r", "color=results/frame*", "-r", "depth=results/depth*",
+                 "-r", "poses=traj.txt"]
+    else:
+        (root / "color").symlink_to(LAP1 / "rgb")
+        (root / "depth").symlink_to(LAP1 / "depth")
     lines = [ln.split(None, 1)[1] for ln in (LAP1 / "poses.txt").read_text().splitlines() if ln.strip()]
     if pose_file == "pose.txt":  # without frame ids, as many tools write it
         (root / "pose.txt").write_text("\n".join(lines) + "\n")
-    else:  # the same poses as Open3D writes them, the matrices made by scipy
+    else:  # the same poses as matrices made by scipy: Open3D's log, or Replica's row-major lines
         from scipy.spatial.transform import Rotation
 
         Ts = []
@@ -150,7 +188,8 @@ def test_simulated_lap_as_a_plain_folder_maps_like_the_lap(tmp_path, pose_file):
             T = np.eye(4)
             T[:3, :3], T[:3, 3] = Rotation.from_quat(v[3:]).as_matrix(), v[:3]
             Ts.append(T)
-        (root / "trajectory.log").write_text(log_text(Ts))
+        (root / pose_file).write_text(log_text(Ts) if pose_file == "trajectory.log" else
+                                      "".join(" ".join(f"{v:.8f}" for v in T.ravel()) + "\n" for T in Ts))
     import yaml
     meta = yaml.safe_load((LAP1 / "recording.yaml").read_text())
     cam = meta["camera"]
@@ -160,10 +199,10 @@ def test_simulated_lap_as_a_plain_folder_maps_like_the_lap(tmp_path, pose_file):
     assert r.exit_code == 0, r.output
     r = runner.invoke(cli, ["ingest", str(root), "--map", str(tmp_path / "plain.h5"),
                             "-r", f"intrinsics={cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}", "-r", "up=z",
-                            "--set", f"detector.options.folder={LAP1 / 'detections'}", "-r", f"classes={classes}"])
+                            "--set", f"detector.options.folder={dets}", "-r", f"classes={classes}", *extra])
     assert r.exit_code == 0, r.output
     got, want = objects_of(tmp_path / "plain.h5"), objects_of(tmp_path / "lap.h5")
-    if pose_file == "trajectory.log":
+    if pose_file != "pose.txt":
         # The matrices' rotations are re-orthonormalised (1e-16 from the quaternions'): a nearly
         # square footprint may then come out a quarter turn round, the same box.
         got = [(c, p, *quarter_turned(s, y, ref_yaw)) for (c, p, s, y), (_, _, _, ref_yaw) in zip(got, want)]

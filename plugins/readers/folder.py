@@ -15,11 +15,17 @@ pose.txt                 (or poses.txt, trajectory.txt, trajectory.log): T_world
                          or five lines per frame, as Open3D and the Redwood datasets write
                          trajectory.log: three numbers (metadata), then the 4x4 matrix's four rows
 ```
+
+``color`` and ``depth`` may end in a file pattern (``results/frame*.jpg``, ``results/depth*.png``:
+Replica as NICE-SLAM and its successors distribute it, both kinds in one folder). When no colour
+image has a depth image of its name, each pairs with the depth image of its number (the last run
+of digits in the name: frame000012 with depth000012).
 """
 
 from __future__ import annotations
 
 import re
+from fnmatch import fnmatch
 from pathlib import Path
 
 import numpy as np
@@ -56,10 +62,12 @@ def natural_key(stem: str) -> tuple:
     return tuple(int(p) if p.isdigit() else p for p in _NUMBER_RUN.split(stem))
 
 
-def _images(folder: Path, extensions: tuple[str, ...]) -> dict[str, Path]:
-    """{stem: path} of the images in a folder (of two with one stem, the earlier extension wins)."""
+def _images(folder: Path, extensions: tuple[str, ...], pattern: str | None = None) -> dict[str, Path]:
+    """{stem: path} of the images in a folder whose names match ``pattern`` (None: any), of the
+    given extensions (of two with one stem, the earlier extension wins)."""
     try:
-        paths = [p for p in folder.iterdir() if p.suffix.lower() in extensions and p.is_file()]
+        paths = [p for p in folder.iterdir() if p.suffix.lower() in extensions and p.is_file()
+                 and (pattern is None or fnmatch(p.name, pattern))]
     except OSError:
         return {}
     paths.sort(key=lambda p: (p.stem, extensions.index(p.suffix.lower())))
@@ -67,6 +75,29 @@ def _images(folder: Path, extensions: tuple[str, ...]) -> dict[str, Path]:
     for p in paths:
         found.setdefault(p.stem, p)
     return found
+
+
+def split_pattern(name: str | None) -> tuple[str | None, str | None]:
+    """("results", "frame*.jpg") from "results/frame*.jpg"; (name, None) when it has no pattern."""
+    if name is None or not any(c in Path(name).name for c in "*?["):
+        return name, None
+    return str(Path(name).parent), Path(name).name
+
+
+def paired_by_number(colors: dict[str, Path], depths: dict[str, Path], where: Path) -> dict[str, Path]:
+    """``depths`` keyed by the colour image of the same number (the last run of digits in the
+    name), for layouts whose colour and depth names differ (frame000012.jpg, depth000012.png)."""
+    def number(stem: str) -> int | None:
+        runs = _NUMBER_RUN.findall(stem)
+        return int(runs[-1]) if runs else None
+
+    by_number: dict[int, Path] = {}
+    for stem, path in depths.items():
+        n = number(stem)
+        if n is not None and by_number.setdefault(n, path) is not path:
+            raise RecordingError(f"two depth images are numbered {n} ({by_number[n].name}, {path.name}): "
+                                 "pair them by name, or narrow the reader option depth to one of them", where)
+    return {stem: by_number[number(stem)] for stem in colors if number(stem) in by_number}
 
 
 def _color_dir(folder: Path, name: str | None) -> Path | None:
@@ -174,11 +205,13 @@ class FolderReader:
             raise RecordingError(
                 "a plain folder of images needs the camera: give the reader option intrinsics "
                 "(ltc ingest ... -r intrinsics=FX,FY,CX,CY, in pixels)", folder)
-        color_dir = _color_dir(folder, opts.get("color"))
+        color_name, color_glob = split_pattern(opts.get("color"))
+        depth_name, depth_glob = split_pattern(opts["depth"])
+        color_dir = _color_dir(folder, color_name)
         if color_dir is None or not color_dir.is_dir():
             tried = opts.get("color") or "/, ".join(COLOR_DIRS)
             raise RecordingError(f"no colour image folder ({tried}/); name it with the reader option color", folder)
-        depth_dir = folder / opts["depth"]
+        depth_dir = folder / depth_name
         if not depth_dir.is_dir():
             raise RecordingError("no depth image folder; name it with the reader option depth", depth_dir)
         pose_path = _pose_file(folder, opts.get("poses"))
@@ -186,8 +219,10 @@ class FolderReader:
             tried = opts.get("poses") or ", ".join(POSE_FILES)
             raise RecordingError(f"no pose file ({tried}); name it with the reader option poses", folder)
 
-        colors = _images(color_dir, COLOR_EXT)
-        depths = _images(depth_dir, DEPTH_EXT)
+        colors = _images(color_dir, COLOR_EXT, color_glob)
+        depths = _images(depth_dir, DEPTH_EXT, depth_glob)
+        if depths and not set(colors) & set(depths):
+            depths = paired_by_number(colors, depths, depth_dir)
         stems = sorted(colors, key=natural_key)
         if not stems:
             raise RecordingError(f"no colour images ({', '.join(COLOR_EXT)})", color_dir)
