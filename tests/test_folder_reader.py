@@ -5,6 +5,7 @@ laid out as a plain folder gives the same objects as the lap itself."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +96,30 @@ def test_open3d_trajectory_log(tmp_path):
     (root / "trajectory.log").write_text(log_text([scaled, np.eye(4)]))
     with pytest.raises(FrameError, match="not a rotation"):
         FolderReader().open(root, {"intrinsics": "5,6,3,2"}).frames[0].load()
+
+
+def test_open3d_reconstruction_folder_needs_no_options(tmp_path):
+    """Open3D's reconstruction system keeps color/, depth/, camera_intrinsic.json (its
+    PinholeCameraIntrinsic: intrinsic_matrix column by column) and writes scene/trajectory.log."""
+    root = write_folder(tmp_path / "rec", ["000000", "000001"], [])
+    (root / "pose.txt").unlink()
+    (root / "scene").mkdir()
+    T1 = pose_matrix([0.5, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0])
+    (root / "scene" / "trajectory.log").write_text(log_text([np.eye(4), T1]))
+    K = {"width": W, "height": H, "intrinsic_matrix": [500.0, 0, 0, 0, 501.0, 0, 4.5, 3.5, 1]}
+    (root / "camera_intrinsic.json").write_text(json.dumps(K))
+    assert FolderReader().sniff(root)
+    rec = open_recording(root)
+    i = rec.intrinsics
+    assert (i.width, i.height, i.fx, i.fy, i.cx, i.cy) == (W, H, 500.0, 501.0, 4.5, 3.5)
+    np.testing.assert_array_equal(rec.frames[1].load().T_world_camera, T1)
+    assert FolderReader().open(root, {"intrinsics": "5,6,3,2"}).intrinsics.fx == 5  # the option wins
+    (root / "camera_intrinsic.json").write_text(json.dumps({**K, "width": 640}))
+    with pytest.raises(RecordingError, match="the camera is 640x6, the depth images 8x6"):
+        open_recording(root)
+    (root / "camera_intrinsic.json").write_text(json.dumps({**K, "intrinsic_matrix": [500.0, 0, 0]}))
+    with pytest.raises(RecordingError, match="not an Open3D camera intrinsic file"):
+        open_recording(root)
 
 
 def test_replica_layout_by_patterns_and_numbers(tmp_path):

@@ -16,6 +16,10 @@ pose.txt                 (or poses.txt, trajectory.txt, trajectory.log): T_world
                          trajectory.log: three numbers (metadata), then the 4x4 matrix's four rows
 ```
 
+The camera is the reader option ``intrinsics``, else Open3D's ``camera_intrinsic.json`` in the
+folder (as its reconstruction system keeps it beside ``color/``, ``depth/`` and
+``scene/trajectory.log``, which is found too).
+
 ``color`` and ``depth`` may end in a file pattern (``results/frame*.jpg``, ``results/depth*.png``:
 Replica as NICE-SLAM and its successors distribute it, both kinds in one folder). When no colour
 image has a depth image of its name, each pairs with the depth image of its number (the last run
@@ -24,6 +28,7 @@ of digits in the name: frame000012 with depth000012).
 
 from __future__ import annotations
 
+import json
 import re
 from fnmatch import fnmatch
 from pathlib import Path
@@ -40,7 +45,8 @@ from ltc_plugins.readers.common import (
 )  # fmt: skip
 
 COLOR_DIRS = ("color", "colour", "rgb", "image", "images")
-POSE_FILES = ("pose.txt", "poses.txt", "trajectory.txt", "trajectory.log")
+POSE_FILES = ("pose.txt", "poses.txt", "trajectory.txt", "trajectory.log", "scene/trajectory.log")
+INTRINSIC_FILES = ("camera_intrinsic.json", "intrinsic.json")
 COLOR_EXT = (".png", ".jpg", ".jpeg")
 DEPTH_EXT = (".png", ".pgm", ".tif", ".tiff")
 
@@ -75,6 +81,26 @@ def _images(folder: Path, extensions: tuple[str, ...], pattern: str | None = Non
     for p in paths:
         found.setdefault(p.stem, p)
     return found
+
+
+def open3d_intrinsics(folder: Path) -> tuple[tuple[float, float, float, float], tuple[int, int], Path] | None:
+    """((fx, fy, cx, cy), (width, height), file) from Open3D's PinholeCameraIntrinsic JSON in the
+    folder (``intrinsic_matrix``: the 3x3 matrix's 9 entries column by column, as Eigen stores
+    it); None when there is none."""
+    path = next((folder / f for f in INTRINSIC_FILES if (folder / f).is_file()), None)
+    if path is None:
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        K = np.array(doc["intrinsic_matrix"], dtype=np.float64).reshape(3, 3).T  # column-major
+        size = (int(doc["width"]), int(doc["height"]))
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+        raise RecordingError(f"not an Open3D camera intrinsic file (width, height, intrinsic_matrix: 9 numbers; "
+                             f"{type(exc).__name__}: {exc})", path) from None
+    camera = (K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+    if not (np.isfinite(camera).all() and camera[0] > 0 and camera[1] > 0):
+        raise RecordingError(f"the camera's fx, fy, cx, cy must be finite and fx, fy positive, got {camera}", path)
+    return tuple(float(v) for v in camera), size, path
 
 
 def split_pattern(name: str | None) -> tuple[str | None, str | None]:
@@ -200,11 +226,14 @@ class FolderReader:
 
     def open(self, path, options: dict | None = None) -> Recording:
         folder, opts = open_folder(path, options, OPTIONS_SCHEMA, self.name)
-        camera = intrinsics_option(opts)
+        camera, from_file = intrinsics_option(opts), None
         if camera is None:
-            raise RecordingError(
-                "a plain folder of images needs the camera: give the reader option intrinsics "
-                "(ltc ingest ... -r intrinsics=FX,FY,CX,CY, in pixels)", folder)
+            from_file = open3d_intrinsics(folder)
+            if from_file is None:
+                raise RecordingError(
+                    "a plain folder of images needs the camera: give the reader option intrinsics "
+                    f"(ltc ingest ... -r intrinsics=FX,FY,CX,CY, in pixels), or put it in {INTRINSIC_FILES[0]}", folder)
+            camera = from_file[0]
         color_name, color_glob = split_pattern(opts.get("color"))
         depth_name, depth_glob = split_pattern(opts["depth"])
         color_dir = _color_dir(folder, color_name)
@@ -229,6 +258,9 @@ class FolderReader:
         poses = read_pose_lines(pose_path, stems)
         depth_scale = float(opts["depth_scale"])
         width, height = first_size((depths[s] for s in stems if s in depths), folder)
+        if from_file is not None and from_file[1] != (width, height):
+            raise RecordingError(f"the camera is {from_file[1][0]}x{from_file[1][1]}, the depth images "
+                                 f"{width}x{height}", from_file[2])
         intr = make_intrinsics(width, height, camera, None)
 
         def missing_pose(stem: str):
