@@ -54,8 +54,10 @@ _NAME = {"type": "string", "minLength": 1}
 OPTIONS_SCHEMA = options_schema(
     1000.0,
     "estimate",
-    color={**_NAME, "description": f"colour image folder (default: the first of {', '.join(COLOR_DIRS)})"},
-    depth={**_NAME, "default": "depth", "description": "depth image folder"},
+    color={**_NAME, "description": f"colour image folder, or folder/pattern such as results/frame*.jpg (default: "
+           f"the first of {', '.join(COLOR_DIRS)})"},
+    depth={**_NAME, "default": "depth", "description": "depth image folder, or folder/pattern such as "
+           "results/depth*.png"},
     poses={**_NAME, "description": f"pose file (default: the first of {', '.join(POSE_FILES)})"},
     classes=CLASSES_OPTION,
 )  # fmt: skip
