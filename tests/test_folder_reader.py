@@ -187,17 +187,21 @@ def assert_same_objects(a, b, tol=1e-3):
 def test_simulated_lap_as_a_plain_folder_maps_like_the_lap(tmp_path, pose_file):
     root = tmp_path / "plain"
     root.mkdir()
-    extra, dets = [], LAP1 / "detections"
-    if pose_file == "traj.txt":  # Replica's layout: both kinds in results/, named frame* and depth*
+    dets = LAP1 / "detections"
+    import yaml
+    meta = yaml.safe_load((LAP1 / "recording.yaml").read_text())
+    cam = meta["camera"]
+    if pose_file == "traj.txt":  # Replica as NICE-SLAM has it: results/frame*.jpg, depth*.png, the camera above
         (root / "results").mkdir()
         dets = tmp_path / "dets"  # the recorded detections under the frames' names
         dets.mkdir()
-        for sub, prefix, folder in (("rgb", "frame", root / "results"), ("depth", "depth", root / "results"),
-                                    ("detections", "frame", dets)):
+        for sub, name, folder in (("rgb", "frame{}.jpg", root / "results"), ("depth", "depth{}.png", root / "results"),
+                                  ("detections", "frame{}.json", dets)):
             for p in (LAP1 / sub).iterdir():
-                (folder / f"{prefix}{p.name}").symlink_to(p)
-        extra = ["--format", "folder", "-r", "color=results/frame*", "-r", "depth=results/depth*",
-                 "-r", "poses=traj.txt"]
+                (folder / name.format(p.stem)).symlink_to(p)  # a PNG read as the .jpg: only its name differs
+        (tmp_path / "cam_params.json").write_text(json.dumps({"camera": {
+            "w": cam["width"], "h": cam["height"], "fx": cam["fx"], "fy": cam["fy"], "cx": cam["cx"], "cy": cam["cy"],
+            "scale": meta["depth"]["scale"]}}))
     else:
         (root / "color").symlink_to(LAP1 / "rgb")
         (root / "depth").symlink_to(LAP1 / "depth")
@@ -215,17 +219,17 @@ def test_simulated_lap_as_a_plain_folder_maps_like_the_lap(tmp_path, pose_file):
             Ts.append(T)
         (root / pose_file).write_text(log_text(Ts) if pose_file == "trajectory.log" else
                                       "".join(" ".join(f"{v:.8f}" for v in T.ravel()) + "\n" for T in Ts))
-    import yaml
-    meta = yaml.safe_load((LAP1 / "recording.yaml").read_text())
-    cam = meta["camera"]
     classes = "[" + ", ".join(meta["classes"]) + "]"
+    camera = [] if pose_file == "traj.txt" else ["-r", f"intrinsics={cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}"]
     runner = CliRunner()
     r = runner.invoke(cli, ["ingest", str(LAP1), "--map", str(tmp_path / "lap.h5")])
     assert r.exit_code == 0, r.output
     r = runner.invoke(cli, ["ingest", str(root), "--map", str(tmp_path / "plain.h5"),
-                            "-r", f"intrinsics={cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}", "-r", "up=z",
-                            "--set", f"detector.options.folder={dets}", "-r", f"classes={classes}", *extra])
+                            *camera, "-r", "up=z", "--set", f"detector.options.folder={dets}",
+                            "-r", f"classes={classes}"])
     assert r.exit_code == 0, r.output
+    readers = json.loads(load_map(tmp_path / "plain.h5").sessions[0]["readers"])
+    assert readers == ["replica" if pose_file == "traj.txt" else "folder"]  # Replica's camera from cam_params.json
     got, want = objects_of(tmp_path / "plain.h5"), objects_of(tmp_path / "lap.h5")
     if pose_file != "pose.txt":
         # The matrices' rotations are re-orthonormalised (1e-16 from the quaternions'): a nearly

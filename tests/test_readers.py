@@ -5,6 +5,7 @@ pose convention (camera-to-world), association, intrinsics, identity and the err
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -16,7 +17,8 @@ from ltc_cli.errors import ConfigError, FrameError, RecordingError
 from ltc_cli.geometry.camera import pose_matrix
 from ltc_cli.geometry.boxes import rot_z
 from ltc_plugins import readers
-from ltc_plugins.readers import ScanNetReader, SevenScenesReader, TumReader
+from ltc_plugins.readers import ReplicaReader, ScanNetReader, SevenScenesReader, TumReader
+from ltc_cli.recordings.open import open_recording
 
 W, H = 8, 6
 
@@ -307,35 +309,70 @@ def test_scannet(tmp_path):
     assert rec.intrinsics.fy == 2.0
 
 
+def make_replica(root: Path, scale: float = 6553.5) -> Path:
+    """Replica/room0 as NICE-SLAM distributes it: frames 0, 1 and 12, cam_params.json one level up."""
+    scene = root / "Replica" / "room0"
+    for i in (0, 1, 12):
+        write_rgb(scene / "results" / f"frame{i:06d}.jpg", fmt="JPEG")
+        write_depth(scene / "results" / f"depth{i:06d}.png", 6553 + i)
+    T = [pose_matrix([0.0, 0.0, float(i)], quat_z(0.1 * i)) for i in range(3)]
+    (scene / "traj.txt").write_text("".join(" ".join(f"{v:.10f}" for v in M.ravel()) + "\n" for M in T))
+    cam = {"w": W, "h": H, "fx": 600.0, "fy": 601.0, "cx": 3.5, "cy": 2.5, "scale": scale}
+    (root / "Replica" / "cam_params.json").write_text(json.dumps({"camera": cam}))
+    return scene
+
+
+def test_replica_opens_with_no_option(tmp_path):
+    scene = make_replica(tmp_path, scale=1000.0)
+    assert ReplicaReader().sniff(scene)
+    rec = open_recording(scene)  # chosen by sniffing; the camera and scale from ../cam_params.json
+    assert rec.format == "replica" and [f.key for f in rec.frames] == ["frame000000", "frame000001", "frame000012"]
+    i = rec.intrinsics
+    assert (i.width, i.height, i.fx, i.fy, i.cx, i.cy) == (W, H, 600.0, 601.0, 3.5, 2.5)
+    f = rec.frames[2].load()  # frame 12: depth 6553 + 12 at the file's scale, the third matrix
+    assert f.depth_m[0, 0] == pytest.approx(6565 / 1000.0)
+    np.testing.assert_allclose(f.T_world_camera, pose_matrix([0.0, 0.0, 2.0], quat_z(0.2)), atol=1e-9)
+    assert open_recording(scene, None, {"depth_scale": 6553.5}).frames[2].load().depth_m[0, 0] == pytest.approx(
+        6565 / 6553.5)  # the option wins
+    cam = json.loads((tmp_path / "Replica" / "cam_params.json").read_text())
+    (tmp_path / "Replica" / "cam_params.json").write_text(json.dumps({"camera": {**cam["camera"], "w": 1200}}))
+    with pytest.raises(RecordingError, match="the camera is 1200x6, the depth images 8x6"):
+        open_recording(scene)
+    (tmp_path / "Replica" / "cam_params.json").unlink()
+    with pytest.raises(RecordingError, match="no cam_params.json"):
+        open_recording(scene)
+    assert open_recording(scene, None, {"intrinsics": "5,6,3,2"}).intrinsics.fx == 5
+
+
 def test_each_layout_is_claimed_by_its_reader_only(tmp_path):
     tum, scene, scannet = make_tum(tmp_path), make_7scenes(tmp_path), make_scannet(tmp_path)
+    replica = make_replica(tmp_path)
     seq = scene / "seq-01"
     claims = {
         name: [r.name for r in readers.READERS if r.sniff(p)]
-        for name, p in [("tum", tum), ("7scenes", seq), ("scannet", scannet)]
+        for name, p in [("tum", tum), ("7scenes", seq), ("scannet", scannet), ("replica", replica)]
     }
-    assert claims == {"tum": ["tum"], "7scenes": ["7scenes"], "scannet": ["scannet"]}
+    assert claims == {"tum": ["tum"], "7scenes": ["7scenes"], "scannet": ["scannet"], "replica": ["replica"]}
     assert not any(r.sniff(tmp_path / "missing") for r in readers.READERS)
 
 
 def test_registered_names():
     got = {}
     readers.register_readers(register=lambda name, obj: got.setdefault(name, obj))
-    assert sorted(got) == ["7scenes", "scannet", "tum"]
+    assert sorted(got) == ["7scenes", "replica", "scannet", "tum"]
     assert all(callable(r.sniff) and callable(r.open) for r in got.values())
 
 
-@pytest.mark.parametrize("layout", ["tum", "7scenes", "scannet", "ltc-recording", "folder", "opengl-poses"])
+@pytest.mark.parametrize("layout", ["tum", "7scenes", "scannet", "replica", "ltc-recording", "folder", "opengl-poses"])
 def test_each_frame_tells_the_pose_its_load_gives(tmp_path, layout):
     """FrameRef.pose, read before the images (a still camera's frames are judged by it and never
     loaded, ingest/keyframes.py): the very pose the frame's load gives, for every reader and with
     the poses read in another convention."""
     from ltc_cli.recordings.conventions import read_poses_as
-    from ltc_cli.recordings.open import open_recording
 
     sample = Path(__file__).resolve().parent.parent / "sample_data" / "lap1"
     made = {"tum": lambda: make_tum(tmp_path), "7scenes": lambda: make_7scenes(tmp_path) / "seq-01",
-            "scannet": lambda: make_scannet(tmp_path)}
+            "scannet": lambda: make_scannet(tmp_path), "replica": lambda: make_replica(tmp_path)}
     if layout in made:
         rec = open_recording(made[layout]())
     elif layout == "folder":  # the sample's images and poses.txt, without recording.yaml

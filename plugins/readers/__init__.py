@@ -1,7 +1,8 @@
 """Recording readers (DESIGN.md section 3): the native ``ltc-recording/1`` layout
 (:mod:`.ltc_recording`, its own entry point) and the layouts users already have: TUM RGB-D
-(:mod:`.tum`), 7-Scenes / 3DMatch (:mod:`.seven_scenes`) and the ScanNet export layout
-(:mod:`.scannet`), all built on :mod:`.common`. A plain folder of images with the camera given as
+(:mod:`.tum`), 7-Scenes / 3DMatch (:mod:`.seven_scenes`), the ScanNet export layout
+(:mod:`.scannet`) and Replica as NICE-SLAM distributes it (:mod:`.replica`), all built on
+:mod:`.common`. A plain folder of images with the camera given as
 options (:mod:`.folder`) and ROS bags (:mod:`.rosbag`) are registered by entry points of their own.
 
 Each reader has ``sniff(path) -> bool`` (cheap, never raises) and ``open(path, options) ->
@@ -30,11 +31,12 @@ never the folder's path, so a recording moved elsewhere keeps its identity and f
 from __future__ import annotations
 
 from ltc_cli import hookimpl
+from ltc_plugins.readers.replica import ReplicaReader
 from ltc_plugins.readers.scannet import ScanNetReader
 from ltc_plugins.readers.seven_scenes import SevenScenesReader
 from ltc_plugins.readers.tum import TumReader
 
-READERS = (TumReader(), SevenScenesReader(), ScanNetReader())
+READERS = (TumReader(), SevenScenesReader(), ScanNetReader(), ReplicaReader())
 
 
 @hookimpl
@@ -43,4 +45,4 @@ def register_readers(register):
         register(reader.name, reader)
 
 
-__all__ = ["READERS", "ScanNetReader", "SevenScenesReader", "TumReader", "register_readers"]
+__all__ = ["READERS", "ReplicaReader", "ScanNetReader", "SevenScenesReader", "TumReader", "register_readers"]
