@@ -63,7 +63,7 @@ class ReplicaReader:
     def open(self, path, options: dict | None = None) -> Recording:
         folder, opts = open_folder(path, options, OPTIONS_SCHEMA, self.name)
         params = camera_params(folder)
-        camera = intrinsics_option(opts)
+        given_camera = camera = intrinsics_option(opts)
         if camera is None:
             if params is None:
                 raise RecordingError(f"no {CAM_PARAMS} in the scene's folder or the one above it: give the camera "
@@ -77,7 +77,7 @@ class ReplicaReader:
             folder_opts["classes"] = opts["classes"]
         rec = FolderReader().open(folder, folder_opts)
         size = (rec.intrinsics.width, rec.intrinsics.height)
-        if params is not None and intrinsics_option(opts) is None and params["size"] != size:
+        if params is not None and given_camera is None and params["size"] != size:
             raise RecordingError(f"the camera is {params['size'][0]}x{params['size'][1]}, the depth images "
                                  f"{size[0]}x{size[1]}", params["path"])
         return replace(rec, format=self.name, meta={**rec.meta, "reader": self.name})
