@@ -155,12 +155,12 @@ def calibrate_cmd(recording, detector, config_file, sets, output, min_pixels, io
 
 def still_text(counted: dict) -> str:
     """``ltc check``'s line on a still camera's frames (recording_check.still_frames)."""
-    from ltc_cli.ingest.recording_check import still_rule
+    from ltc_cli.ingest.keyframes import still_rule
 
     if counted["move_m"] is None or counted["turn_deg"] is None:
         text = "none: every frame is mapped (frames.still_move or still_turn is null)"
     else:
-        text = f"{plural(counted['still'], 'frame')}, not mapped: {still_rule(counted)}"
+        text = f"{plural(counted['still'], 'frame')}, not mapped: {still_rule(counted['move_m'], counted['turn_deg'])}"
     return text + (f"; {plural(counted['unknown'], 'frame')} without a readable pose" if counted["unknown"] else "")
 
 

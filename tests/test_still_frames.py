@@ -303,20 +303,70 @@ def test_check_counts_the_still_frames_and_warns_of_a_camera_fixed_in_place(tmp_
             "since the last frame kept") in r.output
     assert r.output.rstrip().endswith("ready to ingest")
     doc = json.loads(CliRunner().invoke(cli, ["check", str(rec), "--json"]).stdout)
-    assert doc["still_frames"] == {"still": COPIES, "unknown": 0, "move_m": 0.02, "turn_deg": 1.0}
+    counted = doc["still_frames"]
+    assert tuple(counted.pop(k) for k in ("reach_m", "reach_deg")) == pytest.approx(reach_of(rec / "poses.txt"), abs=1e-3)
+    assert counted == {"still": COPIES, "unknown": 0, "move_m": 0.02, "turn_deg": 1.0}
     # A frame without a pose: an ingest skips it, and the check says so.
     poses = (rec / "poses.txt").read_text().splitlines()
     poses[3] = poses[3].split()[0] + " nan nan nan 0 0 0 1"
     (rec / "poses.txt").write_text("\n".join(poses) + "\n")
     doc = json.loads(CliRunner().invoke(cli, ["check", str(rec), "--json"]).stdout)
     assert (doc["still_frames"]["still"], doc["still_frames"]["unknown"]) == (COPIES, 1)
-    # The camera standing at frame 10 for 80 frames, against 76 that move: most are still.
-    fixed = with_still_copies(tmp_path / "fixed", copies=80)
+    # The camera standing at frame 10 for 80 frames, against 76 that move: most are still, but it
+    # is a robot that waits and drives on, not a camera fixed in place: no warning.
+    waits = with_still_copies(tmp_path / "waits", copies=80)
+    r = CliRunner().invoke(cli, ["check", str(waits)])
+    assert "still        80 frames, not mapped" in r.output and r.output.rstrip().endswith("ready to ingest")
+
+
+def reach_of(poses_txt: Path) -> tuple:
+    """A second reckoning of how far a recording's camera went from its first pose (m, degrees):
+    scipy's rotation magnitude of R_first^T R, over poses.txt."""
+    rows = np.array([[float(v) for v in line.split()[1:]] for line in poses_txt.read_text().splitlines()])
+    turns = (Rotation.from_quat(rows[0, 3:]).inv() * Rotation.from_quat(rows[:, 3:])).magnitude()
+    return float(np.linalg.norm(rows[:, :3] - rows[0, :3], axis=1).max()), float(np.degrees(turns.max()))
+
+
+def fixed_camera(root: Path, copies: int, step: float = 0.004) -> Path:
+    """Frame STILL_AFTER of sample_data/lap1 and ``copies`` copies of it, as from a camera fixed in
+    place whose localiser jitters: copy k stands (k % 3) * ``step`` metres along x from it."""
+    rec = with_still_copies(root, copies=copies)
+    lines = [line for line in (rec / "poses.txt").read_text().splitlines() if line.startswith(STILL_AFTER)]
+    for k in range(1, len(lines)):
+        fields = lines[k].split()
+        fields[1] = repr(float(fields[1]) + (k - 1) % 3 * step)
+        lines[k] = " ".join(fields)
+    (rec / "poses.txt").write_text("\n".join(lines) + "\n")
+    for image in [*(rec / "rgb").iterdir(), *(rec / "depth").iterdir()]:  # only frames with a pose line
+        if not image.stem.startswith(STILL_AFTER):
+            image.unlink()
+    return rec
+
+
+FIXED_LINE = ("{n} of {total} frames {are} still (the camera moved under 0.02 m and turned under 1 degree since the "
+              "last frame kept) and {would} mapped, and the camera never left 0.1 m and 5 degrees of its first pose; "
+              "for a camera fixed in place, --set frames.still_move=null maps every frame")
+
+
+def test_a_camera_fixed_in_place_is_warned_of_by_check_and_ingest(tmp_path):
+    fixed = fixed_camera(tmp_path / "fixed", copies=40)
+    # By hand: the copies stand 0, 4 and 8 mm from the first frame (under 2 cm): all 40 are still,
+    # and the camera went 8 mm from its first pose, not turning.
+    assert reach_of(fixed / "poses.txt") == pytest.approx((0.008, 0.0), abs=1e-9)
     r = CliRunner().invoke(cli, ["check", str(fixed)])
-    assert ("warning: 80 of 156 frames are still (the camera moved under 0.02 m and turned under 1 degree since "
-            "the last frame kept) and would not be mapped; for a camera fixed in place, --set "
-            "frames.still_move=null maps every frame") in r.output
+    assert "warning: " + FIXED_LINE.format(n=40, total=41, are="are", would="would not be") in r.output
     assert r.output.rstrip().endswith("1 warning (above)")
     r = CliRunner().invoke(cli, ["check", str(fixed), "--set", "frames.still_move=null"])
     assert "still        none: every frame is mapped (frames.still_move or still_turn is null)" in r.output
     assert r.output.rstrip().endswith("ready to ingest")
+    m = tmp_path / "m.h5"
+    r = CliRunner().invoke(cli, ["ingest", str(fixed), "--map", str(m)])
+    assert r.exit_code == 0, r.output
+    assert f"warning: {fixed}: " + FIXED_LINE.format(n=40, total=41, are="were", would="were not") in r.stderr
+    assert "1 frame ingested, 0 skipped, 40 still" in r.stdout
+    r = CliRunner().invoke(cli, ["ingest", str(fixed), "--map", str(tmp_path / "all.h5"), "--set", "frames.still_move=null"])
+    assert r.exit_code == 0 and "41 frames ingested" in r.stdout and "warning" not in r.stderr
+    # 12 cm of jitter: the camera left 0.1 m of its first pose, so it is not taken for a fixed one.
+    moved = fixed_camera(tmp_path / "moved", copies=40, step=0.06)
+    r = CliRunner().invoke(cli, ["check", str(moved)])
+    assert "fixed in place" not in r.output and r.output.rstrip().endswith("ready to ingest")

@@ -91,6 +91,47 @@ class StillFrames:
         return keep
 
 
+class Reach:
+    """How far a recording's camera went from its first pose: the largest distance (m) and turn
+    (degrees) of any pose given to :meth:`add` from the first one."""
+
+    def __init__(self):
+        self.T_first: np.ndarray | None = None
+        self.move = 0.0
+        self.turn_deg = 0.0
+
+    def add(self, T_world_camera: np.ndarray) -> None:
+        if self.T_first is None:
+            self.T_first = np.array(T_world_camera, dtype=np.float64)
+            return
+        self.move = max(self.move, float(np.linalg.norm(T_world_camera[:3, 3] - self.T_first[:3, 3])))
+        self.turn_deg = max(self.turn_deg, turn_degrees(self.T_first[:3, :3], T_world_camera[:3, :3]))
+
+
+#: A camera taken for one fixed in place (a warning, not a rule): most frames still, and no pose
+#: further than FIXED_MOVE metres or FIXED_TURN degrees from the first. A robot that waits at its
+#: dock or behind a person and then drives on leaves both bounds, and is not warned.
+MOSTLY_STILL, FIXED_MOVE, FIXED_TURN = 0.5, 0.1, 5.0
+
+
+def still_rule(move_m: float, turn_deg: float) -> str:
+    """The still-frame rule in words, for people."""
+    degrees = f"{turn_deg:g} degree{'' if turn_deg == 1 else 's'}"
+    return f"the camera moved under {move_m:g} m and turned under {degrees} since the last frame kept"
+
+
+def fixed_camera_warning(n_still: int, n_frames: int, reach: Reach, settings: dict, ahead: bool = False) -> str | None:
+    """A warning line when a recording's camera seems fixed in place (see MOSTLY_STILL): its first
+    frame is then the only one mapped, and a change in front of it is never seen. None otherwise.
+    ``ahead``: said of an ingest to come (``ltc check``), not of one done."""
+    if n_frames == 0 or n_still < MOSTLY_STILL * n_frames or reach.move >= FIXED_MOVE or reach.turn_deg >= FIXED_TURN:
+        return None
+    rule = still_rule(settings["still_move"], settings["still_turn"])
+    return (f"{n_still} of {n_frames} frames {'are' if ahead else 'were'} still ({rule}) and "
+            f"{'would not be' if ahead else 'were not'} mapped, and the camera never left {FIXED_MOVE:g} m and {FIXED_TURN:g} degrees of its first "
+            "pose; for a camera fixed in place, --set frames.still_move=null maps every frame")
+
+
 def known_pose(ref) -> np.ndarray | None:
     """The pose (4, 4) of a frame not loaded, when its reader knows it (``FrameRef.pose``); None
     when it does not, or cannot read it (the frame's load then says why, at its turn)."""

@@ -8,14 +8,9 @@ import numpy as np
 
 from ltc_cli.geometry.pose_agreement import TOLERANCE
 from ltc_cli.ingest.frame_setup import frame_setup_for
-from ltc_cli.ingest.keyframes import StillFrames, known_pose
+from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_warning, known_pose
 from ltc_cli.ingest.pose_check import pose_message
 from ltc_cli.ingest.session_row import camera_record
-from ltc_cli.text import plural
-
-#: At least this share of the frames still: the camera is probably fixed in place (a warning).
-MOSTLY_STILL = 0.5
-
 
 def still_frames(rec, frames_settings: dict) -> dict | None:
     """How many of the recording's frames an ingest would leave out as a still camera's
@@ -25,32 +20,22 @@ def still_frames(rec, frames_settings: dict) -> dict | None:
     if not rec.frames or any(getattr(ref, "pose", None) is None for ref in rec.frames):
         return None
     still = StillFrames(frames_settings, 1)
+    reach = Reach()
     n_still = n_unknown = 0
     for ref in rec.frames:
         T = known_pose(ref)
         if T is None:
             n_unknown += 1
-        elif still.still(0, T):
+            continue
+        reach.add(T)
+        if still.still(0, T):
             n_still += 1
         else:
             still.mapped(0, T)
     return {"still": n_still, "unknown": n_unknown, "move_m": frames_settings["still_move"],
-            "turn_deg": frames_settings["still_turn"]}
-
-
-def still_rule(counted: dict) -> str:
-    """The still-frame rule in words, for people."""
-    turn = counted["turn_deg"]
-    degrees = f"{turn:g} degree{'' if turn == 1 else 's'}"
-    return f"the camera moved under {counted['move_m']:g} m and turned under {degrees} since the last frame kept"
-
-
-def still_warning(rec, counted: dict | None) -> str | None:
-    """A warning line when most frames are still: a camera fixed in place maps its first frame only."""
-    if counted is None or counted["still"] < MOSTLY_STILL * len(rec.frames):
-        return None
-    return (f"{counted['still']} of {plural(len(rec.frames), 'frame')} are still ({still_rule(counted)}) and would "
-            "not be mapped; for a camera fixed in place, --set frames.still_move=null maps every frame")
+            "turn_deg": frames_settings["still_turn"], "reach_m": round(reach.move, 4),
+            "reach_deg": round(reach.turn_deg, 3), "fixed": fixed_camera_warning(
+                n_still, len(rec.frames), reach, frames_settings, ahead=True)}
 
 
 def check_recording(rec, warn=None, frames_settings: dict | None = None) -> dict:
@@ -60,7 +45,7 @@ def check_recording(rec, warn=None, frames_settings: dict | None = None) -> dict
     verdicts: list = []
     setup = frame_setup_for(rec, warn=warn, on_poses=verdicts.append)
     counted = None if frames_settings is None else still_frames(rec, frames_settings)
-    line = still_warning(rec, counted)
+    line = None if counted is None else counted.pop("fixed")
     if line and warn is not None:
         warn(line)
     verdict = verdicts[0]

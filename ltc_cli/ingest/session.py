@@ -33,7 +33,7 @@ from ltc_cli import plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
-from ltc_cli.ingest.keyframes import StillFrames, known_pose
+from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_warning, known_pose
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.ingest.session_row import now_iso, session_row
 from ltc_cli.map.model import SemanticMap
@@ -274,6 +274,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             fetch = ahead.take if ahead is not None else load_and_detect(
                 det, keep=lambda f, r=r: not still.still(r, f.T_world_camera))
             warned: set = set()  # once-keys of this recording's frame warnings already reported
+            reach, n_still = Reach(), 0  # for the warning of a camera fixed in place
             for ref, key in zip(rec.frames, keys):
                 if opts.should_stop():
                     summary.interrupted = True
@@ -283,8 +284,11 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     opts.tick()
                     continue
                 T_known = known_pose(ref)
+                if T_known is not None:
+                    reach.add(T_known)
                 if T_known is not None and still.still(r, T_known):  # done, not loaded
                     _still_frame(smap, key, summary, row)
+                    n_still += 1
                     opts.tick()
                     continue
                 try:
@@ -307,8 +311,11 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     continue
                 _report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
+                if T_known is None:
+                    reach.add(frame.T_world_camera)
                 if still.still(r, frame.T_world_camera):  # done, not mapped (nor detected)
                     _still_frame(smap, key, summary, row)
+                    n_still += 1
                     opts.tick()
                     continue
                 stage["detect"] += t2 - t1
@@ -348,6 +355,9 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 ahead = None
             if summary.interrupted:
                 break
+            line = fixed_camera_warning(n_still, len(rec.frames), reach, plan.settings["frames"])
+            if line:
+                opts.warn(f"{rec.path}: {line}")
         # A resumed session whose frames were all committed before the kill still ends here: it is
         # finished (pruned, marked complete) exactly as an uninterrupted run would have finished it.
         completes = summary.frames_done > 0 or (resumed and not summary.interrupted)
