@@ -135,10 +135,10 @@ def _render_frames(map_path, output, recording, frame_list, columns, scale, ids,
     from ltc_cli.map.render import load_ground_truth
     from ltc_cli.map.render_frames import default_frames, frame_sheet
     from ltc_cli.map.store import load_map
-    from ltc_cli.recordings.open import open_recording
+    from ltc_cli.recordings.open import open_as_ingested
 
     smap = load_map(map_path, events=False)
-    rec = open_recording(recording, reader, reader_options(reader_opts))
+    rec = open_as_ingested(recording, smap.sessions, reader, reader_options(reader_opts))
     n = len(rec.frames)
     if frame_list:
         try:
@@ -227,11 +227,11 @@ def view_cmd(map_path, recording, reader, reader_opts, every, no_images, save):
     from ltc_cli.map import rrd
     from ltc_cli.map.render_frames import recording_to_map
     from ltc_cli.map.store import load_map
-    from ltc_cli.recordings.open import open_recording
+    from ltc_cli.recordings.open import open_as_ingested
 
     rrd.require_rerun()
     smap = load_map(map_path)
-    rec = open_recording(recording, reader, reader_options(reader_opts)) if recording else None
+    rec = open_as_ingested(recording, smap.sessions, reader, reader_options(reader_opts)) if recording else None
     T = recording_to_map(smap, rec) if rec is not None else None
 
     skips = SkippedFrames(lambda message: click.echo(f"warning: {message}", err=True))

@@ -265,3 +265,50 @@ def test_dining_room_maps_with_one_command(tmp_path, monkeypatch):
     one = objects_of(tmp_path / "one.h5")
     assert_same_objects(one, objects_of(tmp_path / "yaml.h5"))
     assert sum(c == "couch" for c, *_ in one) == 1 and sum(c == "dining table" for c, *_ in one) == 1
+
+
+def test_render_reads_a_recording_as_its_ingest_did(tmp_path):
+    """A plain folder ingested with -r options is drawn into with `ltc render --recording` and no
+    option: the map's session row keeps the reader and its options. An option given overrides the
+    kept one; a map whose row keeps none (made before ltc kept them) needs them as before."""
+    from ltc_cli.map.store import save_map
+
+    root = tmp_path / "plain"
+    root.mkdir()
+    (root / "color").symlink_to(LAP1 / "rgb")
+    (root / "depth").symlink_to(LAP1 / "depth")
+    lines = [ln.split(None, 1)[1] for ln in (LAP1 / "poses.txt").read_text().splitlines() if ln.strip()]
+    (root / "pose.txt").write_text("\n".join(lines) + "\n")
+    import yaml
+    meta = yaml.safe_load((LAP1 / "recording.yaml").read_text())
+    cam = meta["camera"]
+    opts = ["-r", f"intrinsics={cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}", "-r", "up=z",
+            "-r", "classes=[" + ", ".join(meta["classes"]) + "]"]
+    runner = CliRunner()
+    m = tmp_path / "m.h5"
+    r = runner.invoke(cli, ["ingest", str(root), "--map", str(m), *opts,
+                            "--set", f"detector.options.folder={LAP1 / 'detections'}"])
+    assert r.exit_code == 0, r.output
+    row = load_map(m).sessions[0]
+    assert json.loads(row["reader_options"]) == {"intrinsics": f"{cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}",
+                                                 "up": "z", "classes": meta["classes"]}
+
+    def render(name, *extra):
+        out = tmp_path / name
+        res = runner.invoke(cli, ["render", str(m), "-o", str(out), "--recording", str(root), "--frames", "5,40",
+                                  *extra])
+        return res, out
+
+    r_kept, kept = render("kept.png")
+    assert r_kept.exit_code == 0, r_kept.output
+    r_given, given = render("given.png", *opts)
+    assert r_given.exit_code == 0, r_given.output
+    assert np.array_equal(np.asarray(Image.open(kept)), np.asarray(Image.open(given)))
+    r_other, other = render("other.png", "-r", f"intrinsics={cam['fx'] * 2},{cam['fy'] * 2},{cam['cx']},{cam['cy']}")
+    assert r_other.exit_code == 0, r_other.output
+    assert not np.array_equal(np.asarray(Image.open(kept)), np.asarray(Image.open(other)))
+    smap = load_map(m)
+    smap.sessions[0]["reader_options"] = ""  # as in a map made before the column
+    save_map(smap, m)
+    r_old, _ = render("old.png")
+    assert r_old.exit_code == 1 and "needs the camera: give the reader option intrinsics" in r_old.output

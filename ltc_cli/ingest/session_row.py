@@ -66,6 +66,7 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
         "sources": json.dumps([str(Path(r.path).resolve()) for r in recordings]),
         "recordings": json.dumps(identities),
         "readers": json.dumps([r.format for r in recordings]),
+        "reader_options": json.dumps(plan.reader_options or {}, sort_keys=True),
         "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,

@@ -3,6 +3,7 @@ recognises the folder."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from ltc_cli import plugins
@@ -34,3 +35,26 @@ def open_recording(path, reader: str | None = None, options: dict | None = None)
 def count_frames(paths, reader: str | None = None, options: dict | None = None) -> int:
     """The number of frames of the recordings at ``paths`` (for a progress bar)."""
     return sum(len(open_recording(p, reader, options)) for p in paths)
+
+
+def open_as_ingested(path, sessions: list, reader: str | None = None, options: dict | None = None) -> Recording:
+    """Open a recording as the map's latest session that ingested it read it (``sessions``: the
+    map's session rows; a source is matched by its resolved path): with that session's reader,
+    unless ``reader`` names one, and its reader options, each overridden by ``options``. A
+    recording no session read, or read by a map made before ltc kept the options, is opened as
+    given."""
+    where = str(Path(path).resolve())
+    for row in reversed(sessions):
+        try:
+            sources, readers = json.loads(row.get("sources") or "[]"), json.loads(row.get("readers") or "[]")
+            stored = json.loads(row.get("reader_options") or "{}")
+        except ValueError:
+            continue
+        if where not in sources or not isinstance(stored, dict):
+            continue
+        i = sources.index(where)
+        if reader is None and i < len(readers) and readers[i] in plugins.registry("readers"):
+            reader = readers[i]
+        options = {**stored, **(options or {})}
+        break
+    return open_recording(path, reader, options)
