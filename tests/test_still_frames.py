@@ -344,8 +344,12 @@ def fixed_camera(root: Path, copies: int, step: float = 0.004) -> Path:
 
 
 FIXED_LINE = ("{n} of {total} frames {are} still (the camera moved under 0.02 m and turned under 1 degree since the "
-              "last frame kept) and {would} mapped, and the camera never left 0.1 m and 5 degrees of its first pose; "
-              "for a camera fixed in place, --set frames.still_move=null maps every frame")
+              "last frame kept) and {would} mapped: the camera never left 0.1 m and 5 degrees of its first pose. "
+              "ltc maps a moving camera's route and confirms an object only from two distinct views; for a camera "
+              "fixed in place, see README.md, 'A camera fixed in place'")
+#: README.md, 'A camera fixed in place'.
+FIXED_SETTINGS = ["--set", "frames.still_move=null", "--set", "maintenance.min_detection_views=1",
+                  "--set", "maintenance.nondet_min_move=null", "--set", "maintenance.nondet_min_turn=null"]
 
 
 def test_a_camera_fixed_in_place_is_warned_of_by_check_and_ingest(tmp_path):
@@ -364,8 +368,14 @@ def test_a_camera_fixed_in_place_is_warned_of_by_check_and_ingest(tmp_path):
     assert r.exit_code == 0, r.output
     assert f"warning: {fixed}: " + FIXED_LINE.format(n=40, total=41, are="were", would="were not") in r.stderr
     assert "1 frame ingested, 0 skipped, 40 still" in r.stdout
-    r = CliRunner().invoke(cli, ["ingest", str(fixed), "--map", str(tmp_path / "all.h5"), "--set", "frames.still_move=null"])
+    assert "objects 2 created, 0 merged, 2 removed; 0 in the map" in r.stdout  # one view confirms nothing
+    # The README's settings for a fixed camera: every frame mapped, and an object kept from one
+    # view. The frame's recorded detections name two things (a potted plant, a couch).
+    r = CliRunner().invoke(cli, ["ingest", str(fixed), "--map", str(tmp_path / "all.h5"), *FIXED_SETTINGS])
     assert r.exit_code == 0 and "41 frames ingested" in r.stdout and "warning" not in r.stderr
+    want = sorted(d["class"] for d in json.loads((LAP1 / "detections" / f"{STILL_AFTER}.json").read_text())["instances"])
+    smap = load_map(tmp_path / "all.h5")
+    assert sorted(smap.classes[int(np.argmax(smap.objects.scores[i, :-1]))] for i in smap.active_rows()) == want
     # 12 cm of jitter: the camera left 0.1 m of its first pose, so it is not taken for a fixed one.
     moved = fixed_camera(tmp_path / "moved", copies=40, step=0.06)
     r = CliRunner().invoke(cli, ["check", str(moved)])

@@ -122,14 +122,16 @@ def still_rule(move_m: float, turn_deg: float) -> str:
 
 def fixed_camera_warning(n_still: int, n_frames: int, reach: Reach, settings: dict, ahead: bool = False) -> str | None:
     """A warning line when a recording's camera seems fixed in place (see MOSTLY_STILL): its first
-    frame is then the only one mapped, and a change in front of it is never seen. None otherwise.
+    frame is then the only one mapped, and as no object is detected from two distinct views, none
+    is confirmed (maintenance.min_detection_views). None otherwise.
     ``ahead``: said of an ingest to come (``ltc check``), not of one done."""
     if n_frames == 0 or n_still < MOSTLY_STILL * n_frames or reach.move >= FIXED_MOVE or reach.turn_deg >= FIXED_TURN:
         return None
     rule = still_rule(settings["still_move"], settings["still_turn"])
     return (f"{n_still} of {n_frames} frames {'are' if ahead else 'were'} still ({rule}) and "
-            f"{'would not be' if ahead else 'were not'} mapped, and the camera never left {FIXED_MOVE:g} m and {FIXED_TURN:g} degrees of its first "
-            "pose; for a camera fixed in place, --set frames.still_move=null maps every frame")
+            f"{'would not be' if ahead else 'were not'} mapped: the camera never left {FIXED_MOVE:g} m and "
+            f"{FIXED_TURN:g} degrees of its first pose. ltc maps a moving camera's route and confirms an object "
+            "only from two distinct views; for a camera fixed in place, see README.md, 'A camera fixed in place'")
 
 
 def known_pose(ref) -> np.ndarray | None:
