@@ -119,6 +119,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
     with stop_on_signals() as stop, mapping_threads(jobs):
         from ltc_cli.ingest.cluster import cluster_for
         from ltc_cli.ingest.session import ingest as run_ingest
+        from ltc_cli.ingest.session_row import sessions_of
         from ltc_cli.recordings.open import count_frames
         from ltc_cli.tools.calibration_file import load_calibration
 
@@ -132,7 +133,7 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         calib = load_calibration(calibration) if calibration else None
         r_opts = reader_options(reader_opts)
         with cluster_for(dask_spec, dask_batch) as cluster, \
-                progress_bar("ingest", lambda: count_frames(recordings, reader, r_opts)) as progress:
+                progress_bar("ingest", lambda: count_frames(recordings, reader, r_opts, sessions_of(map_path))) as progress:
             summary = run_ingest(
                 list(recordings), map_path, cfg, reader=reader, reader_options=r_opts, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=warn_line,

@@ -6,6 +6,7 @@ laid out as a plain folder gives the same objects as the lap itself."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -290,8 +291,9 @@ def test_render_reads_a_recording_as_its_ingest_did(tmp_path):
                             "--set", f"detector.options.folder={LAP1 / 'detections'}"])
     assert r.exit_code == 0, r.output
     row = load_map(m).sessions[0]
-    assert json.loads(row["reader_options"]) == {"intrinsics": f"{cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}",
-                                                 "up": "z", "classes": meta["classes"]}
+    kept_options = {"intrinsics": f"{cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}", "up": "z", "classes": meta["classes"]}
+    assert json.loads(row["reader_options"]) == [kept_options]
+    ids_first = sorted(int(i) for i in load_map(m).active_rows())
 
     def render(name, *extra):
         out = tmp_path / name
@@ -307,8 +309,43 @@ def test_render_reads_a_recording_as_its_ingest_did(tmp_path):
     r_other, other = render("other.png", "-r", f"intrinsics={cam['fx'] * 2},{cam['fy'] * 2},{cam['cx']},{cam['cy']}")
     assert r_other.exit_code == 0, r_other.output
     assert not np.array_equal(np.asarray(Image.open(kept)), np.asarray(Image.open(other)))
+    # A revisit with no option reads the folder as the first visit did: the same objects, same ids.
+    r = runner.invoke(cli, ["ingest", str(root), "--map", str(m), "--revisit",
+                            "--set", f"detector.options.folder={LAP1 / 'detections'}"])
+    assert r.exit_code == 0, r.output
+    assert "76 frames ingested" in r.output and "visit 2" in r.output
     smap = load_map(m)
-    smap.sessions[0]["reader_options"] = ""  # as in a map made before the column
+    assert json.loads(smap.sessions[1]["reader_options"]) == [kept_options]
+    assert sorted(int(i) for i in smap.active_rows()) == ids_first
+    # Another path to other images is not the recording the map read: it needs its options.
+    other = tmp_path / "other"
+    shutil.copytree(root, other, symlinks=True)
+    r = runner.invoke(cli, ["ingest", str(other), "--map", str(m)])
+    assert r.exit_code == 1 and "needs the camera: give the reader option intrinsics" in r.output
+    smap.sessions[0]["reader_options"] = smap.sessions[1]["reader_options"] = ""  # as a map made before the column
     save_map(smap, m)
     r_old, _ = render("old.png")
     assert r_old.exit_code == 1 and "needs the camera: give the reader option intrinsics" in r_old.output
+
+
+def test_as_ingested_takes_the_latest_session_that_read_the_recording(tmp_path):
+    from ltc_cli.recordings.open import as_ingested
+
+    a, b, c = (tmp_path / n for n in "abc")
+
+    def row(sources, readers, options):
+        return {"sources": json.dumps([str(p.resolve()) for p in sources]), "readers": json.dumps(readers),
+                "reader_options": options if isinstance(options, str) else json.dumps(options)}
+
+    rows = [row([a, b], ["folder", "tum"], [{"x": 1}, {"y": 2}]), row([a], ["folder"], [{"x": 3}]),
+            {"sources": "not json"}]
+    assert as_ingested(a, rows) == ("folder", {"x": 3})  # the latest session that read it
+    assert as_ingested(b, rows) == ("tum", {"y": 2})  # its own options, by its place in the row
+    assert as_ingested(a, rows, options={"z": 1}) == ("folder", {"x": 3, "z": 1})
+    assert as_ingested(a, rows, options={"x": 4}) == ("folder", {"x": 4})  # given wins
+    assert as_ingested(a, rows, reader="tum", options={"z": 1}) == ("tum", {"z": 1})  # another reader's options
+    assert as_ingested(a, rows, reader="folder") == ("folder", {"x": 3})
+    assert as_ingested(c, rows, options={"z": 1}) == (None, {"z": 1})  # never read
+    old = [row([a], ["folder"], "")]  # a map made before the options were kept
+    assert as_ingested(a, old) == ("folder", {})
+    assert as_ingested(a, [row([a], ["a reader no longer installed"], [{"x": 1}])]) == (None, {"x": 1})

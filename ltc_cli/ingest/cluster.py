@@ -99,7 +99,7 @@ class Cluster:
         class list is ``classes``; ``keep``: which frames a still camera's are, judged by the poses
         the reader knows before loading (Prefetch), so that the workers are never sent them."""
         rec = setup.recording
-        job = RecordingJob(str(rec.path), plan.reader, plan.reader_options, rec.identity, plan.settings,
+        job = RecordingJob(str(rec.path), setup.reader, setup.reader_options, rec.identity, plan.settings,
                            tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range),
                            setup.depth_noise)
         return RemoteAhead(rec.frames, keys, done, job, self.executor, 2 * self.batch * self.threads(), self.batch,

@@ -35,14 +35,14 @@ from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_warning, known_pose
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
-from ltc_cli.ingest.session_row import now_iso, session_row
+from ltc_cli.ingest.session_row import now_iso, session_row, sessions_of
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
 from ltc_cli.pipeline.frame_modeling import (BOUNDS_SENSOR_NOISE, FrameModel, excess_noise, in_map_classes,
                                             most_confident)
 from ltc_cli.pipeline.mapper import Mapper
-from ltc_cli.recordings.open import open_recording
+from ltc_cli.recordings.open import as_ingested, open_recording
 from ltc_cli.text import SkippedFrames
 from ltc_cli.tools.calibration_file import calibration_settings, load_calibration
 from ltc_cli.types import Recording
@@ -109,6 +109,8 @@ class RecordingSetup:
     floor_z: float | None  # in the z-up frame; None when not estimated
     depth_range: tuple[float, float]  # the recording's, within the settings' modeling range
     depth_noise: float | None = None  # the sensor's depth error std at 1 m, measured (frame_setup)
+    reader: str | None = None  # as it was opened (recordings/open.as_ingested), for a Dask worker and the row
+    reader_options: dict | None = None
 
     @property
     def T_up(self) -> np.ndarray:
@@ -127,8 +129,6 @@ class Plan:
     metric: object
     policy: object
     revisit: bool = False
-    reader: str | None = None  # as given, so that a Dask worker opens the recordings the same way
-    reader_options: dict | None = None
 
 
 def frame_key(identity: str, frame: str, visit: int) -> str:
@@ -174,9 +174,14 @@ def ingest(
                       cluster=cluster)
     settings = settings_from(config, *([calibration_settings(calibration)] if calibration is not None else []))
     # Everything that can be checked before the map is touched is checked first.
-    plan = _plan([open_recording(p, reader, reader_options) for p in recording_paths], settings, calibration,
-                 revisit, opts.warn)
-    plan.reader, plan.reader_options = reader, reader_options
+    # A recording the map has read before is read the same way (its session row keeps the reader
+    # and options), so a revisit of a plain folder needs no -r again; options given win.
+    sessions = sessions_of(map_path)
+    how = [as_ingested(p, sessions, reader, reader_options) for p in recording_paths]
+    plan = _plan([open_recording(p, *h) for p, h in zip(recording_paths, how)], settings, calibration, revisit,
+                 opts.warn)
+    for setup, (r_name, r_opts) in zip(plan.setups, how):
+        setup.reader, setup.reader_options = r_name, r_opts
 
     lock = MapLock(map_path).acquire()
     try:

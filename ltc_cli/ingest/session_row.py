@@ -12,7 +12,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ltc_cli import __version__
+from ltc_cli.errors import LtcError
 from ltc_cli.map.model import SemanticMap
+from ltc_cli.map.store import load_map
 from ltc_cli.types import Recording
 
 if TYPE_CHECKING:
@@ -66,7 +68,7 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
         "sources": json.dumps([str(Path(r.path).resolve()) for r in recordings]),
         "recordings": json.dumps(identities),
         "readers": json.dumps([r.format for r in recordings]),
-        "reader_options": json.dumps(plan.reader_options or {}, sort_keys=True),
+        "reader_options": json.dumps([s.reader_options or {} for s in plan.setups], sort_keys=True),
         "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
@@ -77,3 +79,14 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
     }
     smap.sessions.append(row)
     return len(smap.sessions) - 1, row
+
+
+def sessions_of(map_path) -> list:
+    """The session rows of the map at ``map_path``: none when there is no map yet, or when it cannot
+    be read now (the ingest then reports why once it holds the map's lock)."""
+    if not Path(map_path).exists():
+        return []
+    try:
+        return load_map(map_path, events=False).sessions
+    except LtcError:
+        return []
