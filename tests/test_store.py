@@ -12,7 +12,7 @@ import pytest
 from ltc_cli.errors import MapFormatError, MapLockedError
 from ltc_cli.map.model import ACTIVE, Event, SemanticMap
 from ltc_cli.map import journal, store_write
-from ltc_cli.map.store import MapLock, load_map, save_map
+from ltc_cli.map.store import MapLock, load_map, load_sessions, save_map
 from tests.reliability import remount_read_only, tmpfs
 
 
@@ -48,6 +48,29 @@ def test_round_trip(tmp_path):
     # No variable-length text anywhere, so no global heap collection (signature GCOL), whose
     # damage made HDF5 loop for ever: the last one held the format mark.
     assert b"GCOL" not in path.read_bytes()
+
+
+def test_the_sessions_alone_are_the_maps_sessions(tmp_path):
+    path = tmp_path / "m.h5"
+    smap = small_map()
+    smap.sessions.append({**smap.sessions[0], "status": "interrupted", "reader_options": '[{"up": "z"}]'})
+    save_map(smap, path)
+    rows = load_sessions(path)
+    assert rows == load_map(path).sessions
+    assert [r["status"] for r in rows] == ["complete", "interrupted"]
+    # The columns the row did not give are empty, as load_map gives them (text "", numbers 0).
+    assert rows[0]["reader_options"] == "" and rows[1]["reader_options"] == '[{"up": "z"}]'
+    assert rows[0]["frames_still"] == 0
+    junk = tmp_path / "junk.h5"
+    junk.write_bytes(b"hello, not hdf5")
+    with pytest.raises(MapFormatError, match="not an HDF5 file"):
+        load_sessions(junk)
+    with h5py.File(path, "a") as f:  # one column a row short: damage, named
+        data = f["sessions/status"][()]
+        del f["sessions/status"]
+        f["sessions/status"] = data[:1]
+    with pytest.raises(MapFormatError, match="sessions"):
+        load_sessions(path)
 
 
 def test_refuses_files_that_are_not_maps(tmp_path):

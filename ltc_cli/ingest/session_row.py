@@ -14,7 +14,7 @@ import numpy as np
 from ltc_cli import __version__
 from ltc_cli.errors import LtcError
 from ltc_cli.map.model import SemanticMap
-from ltc_cli.map.store import load_map
+from ltc_cli.map.store import load_sessions
 from ltc_cli.types import Recording
 
 if TYPE_CHECKING:
@@ -87,6 +87,6 @@ def sessions_of(map_path) -> list:
     if not Path(map_path).exists():
         return []
     try:
-        return load_map(map_path, events=False).sessions
+        return load_sessions(map_path)
     except LtcError:
         return []

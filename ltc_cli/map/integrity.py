@@ -80,7 +80,7 @@ def check_map_arrays(data: dict, sessions: dict, session_kinds: dict) -> str | N
     frames = data["frames"]
     if frames.ndim != 1 or not is_text(frames):
         return f"frames holds {_kind_name(frames)}, not frame keys (text)"
-    return _check_objects(data, len(classes)) or _check_events(data) or _check_sessions(sessions, session_kinds)
+    return _check_objects(data, len(classes)) or _check_events(data) or check_sessions(sessions, session_kinds)
 
 
 def _check_objects(data: dict, n_classes: int) -> str | None:
@@ -135,5 +135,6 @@ def _check_events(data: dict) -> str | None:
     return _check_columns("events", cols, kinds)
 
 
-def _check_sessions(sessions: dict, session_kinds: dict) -> str | None:
+def check_sessions(sessions: dict, session_kinds: dict) -> str | None:
+    """What is wrong with the session columns (column -> array, as the file has them), or None."""
     return _check_columns("sessions", sessions, session_kinds)

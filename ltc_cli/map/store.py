@@ -36,12 +36,12 @@ from ltc_cli.fileio import NoSpaceError, free_bytes, write_bytes_atomic
 from ltc_cli.map import journal
 from ltc_cli.map.lock import (MapLock, check_writable, folder_not_writable, mb, no_space, orphan_temp_files,
                               resolve_map_path)
-from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT, REQUIRED, check_map_arrays
+from ltc_cli.map.integrity import EVENT_INT, EVENT_TEXT, REQUIRED, check_map_arrays, check_sessions
 from ltc_cli.map.model import ADDED_COLUMNS, COLUMNS, Event, ObjectTable, SemanticMap
 from ltc_cli.map.store_write import (FORMAT, SESSION_COLUMNS, VERSION, commit_in_place, committed, file_ident,
                                     map_image, path_ident)
 
-__all__ = ["FORMAT", "VERSION", "SESSION_COLUMNS", "MapLock", "load_map", "save_map", "map_image", "check_map_file",
+__all__ = ["FORMAT", "VERSION", "SESSION_COLUMNS", "MapLock", "load_map", "load_sessions", "save_map", "map_image", "check_map_file",
            "check_writable", "orphan_temp_files", "resolve_map_path"]
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _read_ident: dict = {}  # resolved path -> file_ident of the file load_map just read there
@@ -258,18 +258,7 @@ def load_map(path, events: bool | tuple = True) -> SemanticMap:
         ev = {k: _text(data[f"events/{k}"]) for k in EVENT_TEXT}
         ev.update({k: data[f"events/{k}"].tolist() for k in EVENT_INT})
         log = [Event(**{k: ev[k][i] for k in EVENT_TEXT + EVENT_INT}) for i in range(unread)]
-    n_s = len(next(iter(sess.values()))) if sess else 0
-    sessions = []
-    for i in range(n_s):
-        row = {}
-        for key, kind in SESSION_COLUMNS.items():
-            if key not in sess:  # a column newer than the file: empty
-                row[key] = "" if kind == "s" else 0
-                continue
-            v = sess[key][i]
-            row[key] = (v.decode() if isinstance(v, bytes) else str(v)) if kind == "s" else (
-                int(v) if kind == "i" else float(v))
-        sessions.append(row)
+    sessions = _session_rows(sess)
     smap = SemanticMap(
         classes=classes, objects=table, up_rotation=data["up_rotation"].astype(np.float64),
         events=log, sessions=sessions, frame_keys=set(_text(data["frames"])),
@@ -284,6 +273,44 @@ def load_map(path, events: bool | tuple = True) -> SemanticMap:
     if events is True and patchable and ident is not None and ident == path_ident(real):
         _committed[real, id(smap)] = committed(smap, ident)
     return smap
+
+
+def _session_rows(sess: dict) -> list[dict]:
+    """Session rows (column -> value) from the session columns the file has."""
+    n_s = len(next(iter(sess.values()))) if sess else 0
+    sessions = []
+    for i in range(n_s):
+        row = {}
+        for key, kind in SESSION_COLUMNS.items():
+            if key not in sess:  # a column newer than the file: empty
+                row[key] = "" if kind == "s" else 0
+                continue
+            v = sess[key][i]
+            row[key] = (v.decode() if isinstance(v, bytes) else str(v)) if kind == "s" else (
+                int(v) if kind == "i" else float(v))
+        sessions.append(row)
+    return sessions
+
+
+def load_sessions(path) -> list[dict]:
+    """The session rows of the map at ``path``, without its objects or its log: what an ingest
+    reads before it opens its recordings, to read each as the map's sessions read it."""
+    path = Path(path)
+    with _reading(path) as source:
+        f = _open_checked(path, source)
+        try:
+            sg = _member(f, "sessions", h5py.Group, path)
+            sess = {k: np.asarray(_member(sg, k, h5py.Dataset, path)[()]) for k in SESSION_COLUMNS if k in sg}
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError):  # HDF5 errors in damaged data
+            raise _truncated(path) from None
+        finally:
+            f.close()
+    _read_ident.pop(str(resolve_map_path(path)), None)  # no commit builds on this read
+    _decode_text(sess, "sessions/", path)
+    problem = check_sessions(sess, SESSION_COLUMNS)
+    if problem:
+        raise _damaged(problem, path)
+    return _session_rows(sess)
 
 
 def _commit_failed(path: Path, exc: OSError, size: int) -> MapWriteError:
