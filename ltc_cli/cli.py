@@ -226,7 +226,8 @@ def info(map_path, fmt):
             | {"frames_still": int(s.get("frames_still") or 0), "visit": max(1, int(s.get("visit") or 0)),
                "v_other_learnt": _learnt_rate(s)}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
-            | {"cameras": json.loads(s.get("cameras") or "[]")}
+            | {"cameras": json.loads(s.get("cameras") or "[]"), "readers": json.loads(s.get("readers") or "[]"),
+               "reader_options": _json_list(s.get("reader_options"))}
             for s in smap.sessions
         ],
         "up_rotation": np.asarray(smap.up_rotation).round(6).tolist(),
@@ -257,8 +258,26 @@ def info(map_path, fmt):
                    f"{'learnt per class' if s['v_other_learnt'] else format(s['v_other'], '.3g')}  {', '.join(s['sources'])}")
         for cam in dict.fromkeys(camera_text(c) for c in s["cameras"]):  # each camera once, in order
             click.echo(f"     camera {cam}")
+        for given in dict.fromkeys(options_text(o) for o in s["reader_options"] if o):
+            click.echo(f"     read with {given}")
     click.echo(f"{map_path}: {_plural(o['active'], 'object')} of {_plural(len(per_class), 'class')} from "
                f"{_plural(len(smap.frame_keys), 'frame')} in {_plural(len(smap.sessions), 'session')}")
+
+
+def _json_list(text) -> list:
+    """A session row's JSON list (none in maps written before the column, or if damaged)."""
+    try:
+        value = json.loads(text or "[]")
+    except ValueError:
+        return []
+    return value if isinstance(value, list) else []
+
+
+def options_text(options) -> str:
+    """Reader options as they are given on the command line (-r KEY=VALUE ...)."""
+    if not isinstance(options, dict):
+        return ""
+    return " ".join(f"-r {k}={json.dumps(v) if not isinstance(v, str) else v}" for k, v in sorted(options.items()))
 
 
 def camera_text(c: dict) -> str:

@@ -3,7 +3,7 @@
 Any external detector (or ground truth) can be replayed this way: one JSON file per frame with
 instances (class, score or full score vector, COCO RLE mask or a PNG of instance ids). A file that
 breaks its schema (a score outside [0, 1] or not a finite number, ...) makes its frame unusable
-(FrameError); a class that recording.yaml's class list does not hold is a warning of the frame.
+(FrameError); a class that the recording's class list does not hold is a warning of the frame.
 The one option, ``folder``, names another folder of detection files.
 """
 
@@ -100,10 +100,10 @@ class RecordedDetector:
             scores = np.zeros(len(self.classes))
             for name in dict.fromkeys([inst["class"], *inst.get("scores", {})]):
                 if name not in self._index:
-                    # Only possible when recording.yaml lists the classes (else every class named in
-                    # the files is in the vocabulary); said once per class, naming the first file.
+                    # Only possible when the recording lists the classes (recording.yaml, -r classes=; else
+                    # every class named in the files is in the vocabulary); said once per class.
                     frame.warnings.append(FrameWarning(
-                        f"class {name!r} is not in recording.yaml's class list: its scores are ignored",
+                        f"class {name!r} is not in the recording's class list: its scores are ignored",
                         str(path), once=f"class:{name}",
                     ))  # fmt: skip
             if "scores" in inst:

@@ -102,7 +102,7 @@ def test_class_not_in_the_class_list_warns_once_per_recording(tmp_path):
     assert r.exit_code == 0, r.output
     # Three frames name the lamp, one line says so: the first file that does.
     first = lamps / "detections" / "000001.json"
-    assert lines == [f"warning: {first}: class 'lamp' is not in recording.yaml's class list: its scores are ignored"]
+    assert lines == [f"warning: {first}: class 'lamp' is not in the recording's class list: its scores are ignored"]
     assert "5 frames ingested" in r.stdout
     # The lamp's scores are dropped and nothing else changes: the same objects as without them.
     got, want = objects_of(m_lamps), objects_of(m_clean)

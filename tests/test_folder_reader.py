@@ -294,6 +294,11 @@ def test_render_reads_a_recording_as_its_ingest_did(tmp_path):
     kept_options = {"intrinsics": f"{cam['fx']},{cam['fy']},{cam['cx']},{cam['cy']}", "up": "z", "classes": meta["classes"]}
     assert json.loads(row["reader_options"]) == [kept_options]
     ids_first = sorted(int(i) for i in load_map(m).active_rows())
+    info = runner.invoke(cli, ["info", str(m)])
+    assert (f"     read with -r classes={json.dumps(meta['classes'])} -r intrinsics={cam['fx']},{cam['fy']},{cam['cx']},"
+            f"{cam['cy']} -r up=z") in info.output
+    doc = json.loads(runner.invoke(cli, ["info", str(m), "--format", "json"]).output)
+    assert (doc["sessions"][0]["readers"], doc["sessions"][0]["reader_options"]) == (["folder"], [kept_options])
 
     def render(name, *extra):
         out = tmp_path / name
