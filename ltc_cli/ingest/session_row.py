@@ -68,7 +68,7 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
         "sources": json.dumps([str(Path(r.path).resolve()) for r in recordings]),
         "recordings": json.dumps(identities),
         "readers": json.dumps([r.format for r in recordings]),
-        "reader_options": json.dumps([s.reader_options or {} for s in plan.setups], sort_keys=True),
+        "reader_options": json.dumps([s.reader_options or {} for s in plan.setups], sort_keys=True, default=str),
         "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
