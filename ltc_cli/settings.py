@@ -187,6 +187,7 @@ class IndexSettings(TypedDict):
 class DetectorSettings(TypedDict):
     name: str
     options: dict
+    save_to: Optional[str]  # a folder for the detections, as `recorded` reads them (recordings/saved_detections.py)
 
 
 class MapSettings(TypedDict):

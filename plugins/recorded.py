@@ -4,7 +4,9 @@ Any external detector (or ground truth) can be replayed this way: one JSON file 
 instances (class, score or full score vector, COCO RLE mask or a PNG of instance ids). A file that
 breaks its schema (a score outside [0, 1] or not a finite number, ...) makes its frame unusable
 (FrameError); a class that the recording's class list does not hold is a warning of the frame.
-The one option, ``folder``, names another folder of detection files.
+The one option, ``folder``, names another folder of detection files. A classes.json there (written
+by ``detector.save_to``, ltc_cli/recordings/saved_detections.py) gives the vocabulary, in the order
+of the detector that wrote the files.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from PIL import Image
 
 from ltc_cli import hookimpl
 from ltc_cli.recordings import rle
+from ltc_cli.recordings.saved_detections import CLASSES_FILE
 from ltc_cli.errors import FrameError, PluginError
 from ltc_cli.validation import check_options, validate
 from ltc_cli.types import Detection, Frame, FrameWarning
@@ -49,7 +52,7 @@ class RecordedDetector:
         folder = Path(options["folder"] or Path(recording.path) / "detections")
         if not folder.is_dir():
             raise PluginError("no detections/ folder: record detections or choose a model detector", folder)
-        classes = list(recording.classes or [])
+        classes = _saved_classes(folder) or list(recording.classes or [])
         if not classes:
             # No class list in the recording: the vocabulary is every class the files mention.
             seen = set()
@@ -115,6 +118,22 @@ class RecordedDetector:
             if mask.any() and scores.sum() > 0:
                 out.append(Detection(mask, scores))
         return out
+
+
+def _saved_classes(folder: Path) -> list[str] | None:
+    """The vocabulary a detector wrote beside its detections (``detector.save_to``), in its order,
+    so that a replay's score vectors are the detector's; None when there is none."""
+    path = folder / CLASSES_FILE
+    if not path.is_file():
+        return None
+    try:
+        classes = json.loads(path.read_text(encoding="utf-8"))["classes"]
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
+        raise PluginError(f"not a class list written by detector.save_to ({exc})", path) from None
+    if not isinstance(classes, list) or not classes or not all(isinstance(c, str) and c for c in classes) \
+            or len(set(classes)) != len(classes):
+        raise PluginError("not a class list written by detector.save_to (classes: distinct names)", path)
+    return classes
 
 
 @hookimpl

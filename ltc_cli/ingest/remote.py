@@ -22,12 +22,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ltc_cli import plugins
 from ltc_cli.errors import FrameError, LtcError
 from ltc_cli.pipeline.classes import ClassMapper
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, in_map_classes, model_frame, most_confident
 from ltc_cli.pipeline.visibility import ray_grid
 from ltc_cli.recordings.open import open_recording
+from ltc_cli.recordings.saved_detections import detector_for
 from ltc_cli.types import Frame, FrameWarning, Intrinsics
 
 #: Recordings (with their detectors) a worker process keeps open; enough for the writers of a
@@ -110,8 +110,7 @@ class _Opened:
         if self.recording.identity != job.identity:
             raise LtcError("a Dask worker reads another recording at this path than the writer did "
                            "(workers must see the same files)", job.path)
-        det_cfg = job.settings["detector"]
-        self.detector = plugins.get("detectors", det_cfg["name"]).factory(self.recording, dict(det_cfg["options"]))
+        self.detector = detector_for(self.recording, job.settings["detector"])
         self.lock = None if getattr(self.detector, "thread_safe", False) else threading.Lock()
         self.classes = ClassMapper(self.detector.classes, list(job.classes), job.settings["integration"]["unassigned_score"])
         self.flags = ClassFlags.from_settings(list(job.classes), job.settings)
