@@ -174,6 +174,8 @@ def ingest(
                       warn=warn or _ignore, should_stop=should_stop or _never, on_frame=on_frame,
                       cluster=cluster)
     settings = settings_from(config, *([calibration_settings(calibration)] if calibration is not None else []))
+    if settings["detector"].get("save_to") is not None:  # Dask workers write there too, from their own folder
+        settings["detector"]["save_to"] = str(Path(settings["detector"]["save_to"]).absolute())
     # Everything that can be checked before the map is touched is checked first.
     # A recording the map has read before is read the same way (its session row keeps the reader
     # and options), so a revisit of a plain folder needs no -r again; options given win.
