@@ -37,10 +37,11 @@ def test_a_frames_document_by_hand():
     assert json.loads(json.dumps(doc)) == doc  # plain JSON, floats exact
 
 
-def test_the_sample_laps_detections_saved_and_replayed_make_its_map(tmp_path):
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_the_sample_laps_detections_saved_and_replayed_make_its_map(tmp_path, jobs):
     saved = tmp_path / "saved"
     cfg = load_config(None, [f"detector.save_to={saved}"])
-    a = ingest([LAP1], tmp_path / "a.h5", cfg)
+    a = ingest([LAP1], tmp_path / "a.h5", cfg, jobs=jobs)  # with 2, the look-ahead's threads write
     files = sorted(p.stem for p in saved.glob("*.json") if p.name != "classes.json")
     assert files == sorted(line.split()[0] for line in (LAP1 / "poses.txt").read_text().splitlines())
     assert json.loads((saved / "classes.json").read_text())["classes"] == load_map(tmp_path / "a.h5").classes
