@@ -12,6 +12,7 @@ from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_warning, k
 from ltc_cli.ingest.pose_check import pose_message
 from ltc_cli.ingest.session_row import camera_record
 
+
 def still_frames(rec, frames_settings: dict) -> dict | None:
     """How many of the recording's frames an ingest would leave out as a still camera's
     (ingest/keyframes.py), by the poses the reader knows before reading the images; None when it
