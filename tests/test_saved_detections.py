@@ -81,6 +81,19 @@ def test_bad_save_to_and_class_files_are_one_line(tmp_path):
                             "--set", f"detector.save_to={tmp_path / 'dets'}"])
     assert r.exit_code == 1 and "detector.save_to takes one recording per ingest" in r.stderr
     assert not (tmp_path / "m.h5").exists()
+    # One folder for two recordings (two laps of ingest-many with one save_to): the second is refused
+    # before it writes a file, and the first one's files are as they were; the first again is fine.
+    dets = tmp_path / "dets"
+    assert runner.invoke(cli, ["ingest", str(LAP1), "--map", str(tmp_path / "a.h5"), "--set",
+                               f"detector.save_to={dets}"]).exit_code == 0
+    before = {p.name: p.read_bytes() for p in dets.iterdir()}
+    r = runner.invoke(cli, ["ingest", str(LAP1.parent / "lap2"), "--map", str(tmp_path / "b.h5"), "--set",
+                            f"detector.save_to={dets}"])
+    assert r.exit_code == 1 and len(r.stderr.strip().splitlines()) == 1
+    assert "detector.save_to: this folder holds another recording's detections" in r.stderr
+    assert {p.name: p.read_bytes() for p in dets.iterdir()} == before and not (tmp_path / "b.h5").exists()
+    r = runner.invoke(cli, ["ingest", str(LAP1), "--map", str(tmp_path / "a2.h5"), "--set", f"detector.save_to={dets}"])
+    assert r.exit_code == 0, r.output
     saved = tmp_path / "saved"
     saved.mkdir()
     (saved / "classes.json").write_text('{"classes": ["chair", "chair"]}')

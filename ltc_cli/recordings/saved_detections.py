@@ -74,10 +74,24 @@ def detector_for(recording, detector_settings: dict):
     if folder is None:
         return det
     folder = Path(folder)
-    doc = {"detector": detector_settings["name"], "classes": list(det.classes)}
+    doc = {"detector": detector_settings["name"], "classes": list(det.classes), "recording": recording.identity}
+    _check_same_recording(folder / CLASSES_FILE, recording.identity)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         write_text_atomic(folder / CLASSES_FILE, json.dumps(doc, indent=1) + "\n")
     except OSError as exc:
         raise ConfigError(f"detector.save_to: cannot write there ({exc.strerror or exc})", folder) from None
     return SavingDetector(det, folder, detector_settings["name"])
+
+
+def _check_same_recording(classes_file: Path, identity: str) -> None:
+    """A folder already written for another recording is not written into: frames of one name
+    (000000.json) would silently replace that recording's (two laps of ``ltc ingest-many`` with one
+    ``detector.save_to``). The same recording again (a re-run, a revisit) is fine."""
+    try:
+        earlier = json.loads(classes_file.read_text(encoding="utf-8")).get("recording")
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return  # none yet (or not ours to judge): written anew below
+    if earlier is not None and earlier != identity:
+        raise ConfigError(f"detector.save_to: this folder holds another recording's detections ({earlier}, not "
+                          f"{identity}); give each recording its own folder", classes_file.parent)
