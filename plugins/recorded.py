@@ -19,7 +19,7 @@ from PIL import Image
 
 from ltc_cli import hookimpl
 from ltc_cli.recordings import rle
-from ltc_cli.recordings.saved_detections import CLASSES_FILE
+from ltc_cli.recordings.saved_detections import CLASSES_FILE, recording_folder
 from ltc_cli.errors import FrameError, PluginError
 from ltc_cli.validation import check_options, validate
 from ltc_cli.types import Detection, Frame, FrameWarning
@@ -30,7 +30,8 @@ OPTIONS_SCHEMA = {
     "additionalProperties": False,
     "properties": {
         "folder": {"type": ["string", "null"], "minLength": 1, "default": None,
-                   "description": "folder of the detection files (default: the recording's detections/)"},
+                   "description": "folder of the detection files (default: the recording's detections/); "
+                                  "{recording} in it: the recording folder's name"},
     },
 }  # fmt: skip
 
@@ -49,7 +50,8 @@ class RecordedDetector:
     @classmethod
     def from_options(cls, recording, options: dict) -> "RecordedDetector":
         options = check_options(options, OPTIONS_SCHEMA, "detector 'recorded'", PluginError)
-        folder = Path(options["folder"] or Path(recording.path) / "detections")
+        given = options["folder"]
+        folder = recording_folder(given, recording) if given else Path(recording.path) / "detections"
         if not folder.is_dir():
             raise PluginError("no detections/ folder: record detections or choose a model detector", folder)
         classes = _saved_classes(folder) or list(recording.classes or [])

@@ -79,7 +79,8 @@ def test_bad_save_to_and_class_files_are_one_line(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "m.h5").exists()
     r = runner.invoke(cli, ["ingest", str(LAP1), str(LAP1.parent / "lap2"), "--map", str(tmp_path / "m.h5"),
                             "--set", f"detector.save_to={tmp_path / 'dets'}"])
-    assert r.exit_code == 1 and "detector.save_to takes one recording per ingest" in r.stderr
+    assert r.exit_code == 1 and "detector.save_to takes one recording per folder" in r.stderr
+    assert "put {recording} in it" in r.stderr
     assert not (tmp_path / "m.h5").exists()
     # One folder for two recordings (two laps of ingest-many with one save_to): the second is refused
     # before it writes a file, and the first one's files are as they were; the first again is fine.
@@ -115,3 +116,20 @@ def test_frames_detected_on_dask_workers_are_saved_too(tmp_path):
     assert len([p for p in saved.glob("*.json") if p.name != "classes.json"]) == 76
     ingest([LAP1], tmp_path / "replay.h5", load_config(None, [f"detector.options.folder={saved}"]))
     assert_same_map(tmp_path / "one.h5", tmp_path / "replay.h5")
+
+
+def test_recording_in_the_folder_names_each_recordings_own(tmp_path):
+    """Two recordings in one ingest, each saved to its own folder by ``{recording}``, and replayed
+    from the same pattern: the two sessions' map again."""
+    lap2 = LAP1.parent / "lap2"
+    runner = CliRunner()
+    r = runner.invoke(cli, ["ingest", str(LAP1), str(lap2), "--map", str(tmp_path / "a.h5"),
+                            "--set", f"detector.save_to={tmp_path / 'dets' / '{recording}'}"])
+    assert r.exit_code == 0, r.output
+    for lap in (LAP1, lap2):
+        names = {p.name for p in (tmp_path / "dets" / lap.name).iterdir()}
+        assert names == {p.name for p in (lap / "detections").iterdir()} | {"classes.json"}
+    r = runner.invoke(cli, ["ingest", str(LAP1), str(lap2), "--map", str(tmp_path / "b.h5"),
+                            "--set", f"detector.options.folder={tmp_path / 'dets' / '{recording}'}"])
+    assert r.exit_code == 0, r.output
+    assert_same_map(tmp_path / "a.h5", tmp_path / "b.h5")

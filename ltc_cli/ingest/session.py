@@ -43,7 +43,7 @@ from ltc_cli.pipeline.frame_modeling import (BOUNDS_SENSOR_NOISE, FrameModel, ex
                                             most_confident)
 from ltc_cli.pipeline.mapper import Mapper
 from ltc_cli.recordings.open import as_ingested, open_recording
-from ltc_cli.recordings.saved_detections import detector_for
+from ltc_cli.recordings.saved_detections import RECORDING_FIELD, detector_for
 from ltc_cli.text import SkippedFrames
 from ltc_cli.tools.calibration_file import calibration_settings, load_calibration
 from ltc_cli.types import Recording
@@ -209,8 +209,10 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
     """Plugins and per-recording set-up (up axis, floor, depth range), before the map is opened."""
     metric = plugins.get("metrics", settings["association"]["metric"]).factory(settings["association"])
     policy = plugins.get("policies", settings["maintenance"]["policy"]).factory(settings["maintenance"])
-    if settings["detector"].get("save_to") is not None and len(recordings) > 1:
-        raise ConfigError("detector.save_to takes one recording per ingest (their frames' names may collide)")
+    save_to = settings["detector"].get("save_to")
+    if save_to is not None and len(recordings) > 1 and RECORDING_FIELD not in save_to:
+        raise ConfigError("detector.save_to takes one recording per folder (their frames' names may collide): "
+                          f"put {RECORDING_FIELD} in it, which names each recording's folder")
     detectors = [detector_for(rec, settings["detector"]) for rec in recordings]
     m_cfg = settings["modeling"]
     setups = []

@@ -23,6 +23,14 @@ from ltc_cli.recordings import rle
 
 #: The detector's vocabulary, beside the frames' files.
 CLASSES_FILE = "classes.json"
+#: In ``save_to`` (and the recorded detector's ``folder``): the recording folder's name, so that the
+#: recordings of one ingest (or of one ingest-many map) each get their own folder.
+RECORDING_FIELD = "{recording}"
+
+
+def recording_folder(template, recording) -> Path:
+    """``template`` with ``{recording}`` replaced by the name of ``recording``'s folder."""
+    return Path(str(template).replace(RECORDING_FIELD, Path(recording.path).name))
 
 
 class DetectionsWriteError(LtcError):
@@ -73,7 +81,7 @@ def detector_for(recording, detector_settings: dict):
     folder = detector_settings.get("save_to")
     if folder is None:
         return det
-    folder = Path(folder)
+    folder = recording_folder(folder, recording)
     doc = {"detector": detector_settings["name"], "classes": list(det.classes), "recording": recording.identity}
     _check_same_recording(folder / CLASSES_FILE, recording.identity)
     try:
