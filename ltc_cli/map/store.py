@@ -41,8 +41,8 @@ from ltc_cli.map.model import ADDED_COLUMNS, COLUMNS, Event, ObjectTable, Semant
 from ltc_cli.map.store_write import (FORMAT, SESSION_COLUMNS, VERSION, commit_in_place, committed, file_ident,
                                     map_image, path_ident)
 
-__all__ = ["FORMAT", "VERSION", "SESSION_COLUMNS", "MapLock", "load_map", "load_sessions", "save_map", "map_image", "check_map_file",
-           "check_writable", "orphan_temp_files", "resolve_map_path"]
+__all__ = ["FORMAT", "VERSION", "SESSION_COLUMNS", "MapLock", "load_map", "load_sessions", "save_map", "map_image",
+           "check_map_file", "check_writable", "orphan_temp_files", "resolve_map_path"]
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _read_ident: dict = {}  # resolved path -> file_ident of the file load_map just read there
 # (resolved path, id of the SemanticMap) -> store_write.Committed: the file as that map last
