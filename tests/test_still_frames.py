@@ -380,3 +380,25 @@ def test_a_camera_fixed_in_place_is_warned_of_by_check_and_ingest(tmp_path):
     moved = fixed_camera(tmp_path / "moved", copies=40, step=0.06)
     r = CliRunner().invoke(cli, ["check", str(moved)])
     assert "fixed in place" not in r.output and r.output.rstrip().endswith("ready to ingest")
+
+
+@pytest.mark.parametrize("known", [True, False])
+def test_a_resumed_ingest_judges_a_fixed_camera_by_all_its_frames(tmp_path, monkeypatch, known):
+    """Interrupted after 30 of the fixed camera's 41 frames: the resumed run itself sees 11 (all
+    still), under half. It judges the frames the first run did again from their poses, and warns as
+    an uninterrupted ingest does; a reader that does not tell poses before loading gives no warning
+    (from 11 frames it could be wrong either way). Run once more, the finished ingest is a no-op, and
+    says nothing of the camera again."""
+    fixed = fixed_camera(tmp_path / "fixed", copies=40)
+    if not known:
+        monkeypatch.setattr(session_module, "open_recording", poses_unknown(session_module.open_recording))
+    m, warned, asked = tmp_path / "m.h5", [], []
+    s = ingest([fixed], m, defaults(), warn=warned.append, should_stop=lambda: asked.append(1) or len(asked) > 30)
+    assert s.interrupted and (s.frames_done, s.frames_still) == (1, 29) and warned == []
+    s = ingest([fixed], m, defaults(), warn=warned.append)
+    assert not s.interrupted and (s.frames_done, s.frames_still, s.frames_already) == (0, 11, 30)
+    line = f"{fixed}: " + FIXED_LINE.format(n=40, total=41, are="were", would="were not")
+    assert warned == ([line] if known else [])
+    warned.clear()
+    s = ingest([fixed], m, defaults(), warn=warned.append)
+    assert (s.frames_done, s.frames_still, s.frames_already) == (0, 0, 41) and warned == []

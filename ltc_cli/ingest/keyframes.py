@@ -134,6 +134,39 @@ def fixed_camera_warning(n_still: int, n_frames: int, reach: Reach, settings: di
             "only from two distinct views; for a camera fixed in place, see README.md, 'A camera fixed in place'")
 
 
+def still_census(poses, settings: dict) -> tuple[int, int, Reach]:
+    """Over a recording's poses (4, 4) in order, None where unknown: how many frames an ingest leaves
+    out as still, how many poses are unknown, and the camera's :class:`Reach`; every frame that is
+    not still is taken as mapped (a frame with a bad image is not known before it is read)."""
+    still, reach = StillFrames(settings, 1), Reach()
+    n_still = n_unknown = 0
+    for T in poses:
+        if T is None:
+            n_unknown += 1
+            continue
+        reach.add(T)
+        if still.still(0, T):
+            n_still += 1
+        else:
+            still.mapped(0, T)
+    return n_still, n_unknown, reach
+
+
+def fixed_camera_after(refs, n_still: int, reach: Reach, n_already: int, resumed: bool, settings: dict) -> str | None:
+    """The warning of a camera fixed in place at the end of a recording's ingest (None: none).
+    ``n_still`` and ``reach`` are of the frames this run saw, ``n_already`` the recording's frames it
+    skipped as already in the map, ``resumed`` whether it goes on with an interrupted session. Frames
+    done by earlier runs of the session are judged again from their poses, as ``ltc check`` judges
+    them; without every pose known before loading, not at all (a warning from part of the frames
+    could be wrong either way). A finished recording run again without ``--revisit`` changes
+    nothing and is not warned of again."""
+    if n_already:
+        if (n_already == len(refs) and not resumed) or any(getattr(ref, "pose", None) is None for ref in refs):
+            return None
+        n_still, _, reach = still_census((known_pose(ref) for ref in refs), settings)
+    return fixed_camera_warning(n_still, len(refs), reach, settings)
+
+
 def known_pose(ref) -> np.ndarray | None:
     """The pose (4, 4) of a frame not loaded, when its reader knows it (``FrameRef.pose``); None
     when it does not, or cannot read it (the frame's load then says why, at its turn)."""

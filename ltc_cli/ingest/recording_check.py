@@ -8,7 +8,7 @@ import numpy as np
 
 from ltc_cli.geometry.pose_agreement import TOLERANCE
 from ltc_cli.ingest.frame_setup import frame_setup_for
-from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_warning, known_pose
+from ltc_cli.ingest.keyframes import fixed_camera_warning, known_pose, still_census
 from ltc_cli.ingest.pose_check import pose_message
 from ltc_cli.ingest.session_row import camera_record
 
@@ -20,19 +20,7 @@ def still_frames(rec, frames_settings: dict) -> dict | None:
     count takes every other frame as mapped (a frame with a bad image is not known here)."""
     if not rec.frames or any(getattr(ref, "pose", None) is None for ref in rec.frames):
         return None
-    still = StillFrames(frames_settings, 1)
-    reach = Reach()
-    n_still = n_unknown = 0
-    for ref in rec.frames:
-        T = known_pose(ref)
-        if T is None:
-            n_unknown += 1
-            continue
-        reach.add(T)
-        if still.still(0, T):
-            n_still += 1
-        else:
-            still.mapped(0, T)
+    n_still, n_unknown, reach = still_census((known_pose(ref) for ref in rec.frames), frames_settings)
     return {"still": n_still, "unknown": n_unknown, "move_m": frames_settings["still_move"],
             "turn_deg": frames_settings["still_turn"], "reach_m": round(reach.move, 4),
             "reach_deg": round(reach.turn_deg, 3), "fixed": fixed_camera_warning(

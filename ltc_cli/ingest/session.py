@@ -33,7 +33,7 @@ from ltc_cli import plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
-from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_warning, known_pose
+from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_after, known_pose
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.ingest.session_row import now_iso, session_row, sessions_of
 from ltc_cli.map.model import SemanticMap
@@ -285,13 +285,14 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             fetch = ahead.take if ahead is not None else load_and_detect(
                 det, keep=lambda f, r=r: not still.still(r, f.T_world_camera))
             warned: set = set()  # once-keys of this recording's frame warnings already reported
-            reach, n_still = Reach(), 0  # for the warning of a camera fixed in place
+            reach, n_still, n_already = Reach(), 0, 0  # for the warning of a camera fixed in place
             for ref, key in zip(rec.frames, keys):
                 if opts.should_stop():
                     summary.interrupted = True
                     break
                 if key in smap.frame_keys:
                     summary.frames_already += 1
+                    n_already += 1
                     opts.tick()
                     continue
                 T_known = known_pose(ref)
@@ -366,7 +367,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                 ahead = None
             if summary.interrupted:
                 break
-            line = fixed_camera_warning(n_still, len(rec.frames), reach, plan.settings["frames"])
+            line = fixed_camera_after(rec.frames, n_still, reach, n_already, resumed, plan.settings["frames"])
             if line:
                 opts.warn(f"{rec.path}: {line}")
         # A resumed session whose frames were all committed before the kill still ends here: it is
