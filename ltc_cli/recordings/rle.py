@@ -40,27 +40,37 @@ def counts_to_string(counts: list[int]) -> str:
     return "".join(out)
 
 
-def string_to_counts(s: str) -> list[int]:
-    counts: list[int] = []
-    p, n = 0, len(s)
-    while p < n:
-        x, k, more = 0, 0, True
-        while more:
-            if p >= n:
-                raise ValueError("truncated RLE string")
-            c = ord(s[p]) - 48
-            if c < 0 or c > 63:
-                raise ValueError(f"invalid character {s[p]!r} in RLE string")
-            x |= (c & 0x1F) << (5 * k)
-            more = bool(c & 0x20)
-            p += 1
-            k += 1
-            if not more and (c & 0x10):
-                x |= -1 << (5 * k)
-        if len(counts) > 2:
-            x += counts[-2]
-        counts.append(x)
-    return counts
+#: Characters a group of 5-bit digits may span in int64 (12 x 5 = 60 bits): a run of 2^60 pixels or
+#: more is no image's.
+MAX_GROUP = 12
+
+
+def string_to_counts(s: str) -> np.ndarray:
+    """The run lengths (int64) of a compressed string; ValueError for a character outside the
+    alphabet, a string that ends inside a number, or a number too large for any image. In numpy:
+    a replay decodes every mask of every frame (pure Python took 0.5 ms a tum-fr1-rpy mask)."""
+    c = np.frombuffer(s.encode("utf-8"), dtype=np.uint8).astype(np.int64) - 48
+    if c.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    if ((c < 0) | (c > 63)).any():
+        bad = next(ch for ch in s if not 0 <= ord(ch) - 48 <= 63)
+        raise ValueError(f"invalid character {bad!r} in RLE string")
+    ends = np.flatnonzero((c & 0x20) == 0)  # a digit without the continuation bit ends its number
+    if ends.size == 0 or ends[-1] != c.size - 1:
+        raise ValueError("truncated RLE string")
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    lengths = ends - starts + 1
+    if lengths.max() > MAX_GROUP:
+        raise ValueError("a run length in the RLE string is too large for an image")
+    digit = np.arange(c.size) - np.repeat(starts, lengths)  # each character's place in its number
+    x = np.add.reduceat((c & 0x1F) << (5 * digit), starts)
+    negative = (c[ends] & 0x10) != 0  # the sign bit of a number's last digit
+    x[negative] |= -1 << (5 * lengths[negative])
+    # After the first two, each run is coded as its difference from the run two before it: the
+    # runs at odd places and at even places from the third on are running sums.
+    x[1::2] = np.cumsum(x[1::2])
+    x[2::2] = np.cumsum(x[2::2])
+    return x
 
 
 def encode(mask: np.ndarray) -> dict:
