@@ -184,6 +184,64 @@ def test_tum_non_finite_pose_and_missing_image(tmp_path):
     assert err.value.path.endswith("1.040000.png")
 
 
+def test_tum_poses_are_scipys_slerp_frame_by_frame(tmp_path):
+    """The reader interpolates every frame's pose at once; each must be what scipy's Slerp and
+    numpy's interp give over the trajectory, also where quaternions change sign (the same rotation:
+    the shorter arc), are slightly off unit length, or a frame stands exactly on a row. A row that
+    is not a pose spoils only the frames it brackets, each with the line named."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    rng = np.random.default_rng(5)
+    d = tmp_path / "rgbd_dataset_freiburg1_slerp"
+    write_depth(d / "depth" / "d.png", 5000)  # every frame names this one image: poses only here
+    gt_t = 1.0 + 0.05 * np.arange(30)  # rows 0.05 s apart, under max_pose_gap
+    q = Rotation.random(30, random_state=rng).as_quat()
+    q[1::3] *= -1
+    q[2] *= 1.005
+    xyz = rng.normal(size=(30, 3))
+    rows = [f"{t:.6f} " + " ".join(f"{v:.17g}" for v in (*p, *r)) for t, p, r in zip(gt_t, xyz, q)]
+    rows[20] = f"{gt_t[20]:.6f} nan 0 0 0 0 0 1"
+    (d / "groundtruth.txt").write_text("\n".join(rows) + "\n")
+    frame_t = np.unique(np.round(np.concatenate([rng.uniform(1.0, gt_t[-1], 60), gt_t[[0, 5, 29]]]), 6))
+    for name, folder in (("rgb.txt", "rgb"), ("depth.txt", "depth")):
+        (d / name).write_text("".join(f"{t:.6f} depth/d.png\n" for t in frame_t))
+    rec = TumReader().open(d, {})
+    assert [float(f.key) for f in rec.frames] == pytest.approx(frame_t.tolist())
+    rows_t = np.array([float(r.split()[0]) for r in rows])
+    slerp = Slerp(rows_t, Rotation.from_quat(q))
+    spoilt = (frame_t > rows_t[19]) & (frame_t < rows_t[21])
+    assert 0 < spoilt.sum() < len(frame_t) - 10
+    for f, t, bad in zip(rec.frames, frame_t, spoilt):
+        if bad:
+            with pytest.raises(FrameError, match="line 21: pose has non-finite values"):
+                f.pose()
+            continue
+        T = f.pose()
+        np.testing.assert_allclose(T[:3, :3], slerp(t).as_matrix(), atol=1e-9)
+        np.testing.assert_allclose(T[:3, 3], [np.interp(t, rows_t, xyz[:, k]) for k in range(3)], atol=1e-9)
+        np.testing.assert_array_equal(T[3], [0, 0, 0, 1])
+
+
+def test_tum_trajectory_files_read_at_once_or_line_by_line(tmp_path):
+    """numpy reads a trajectory of eight numbers a line at once; a file with commas, or one that is
+    broken, is read line by line: the same poses, or one line naming the problem."""
+    d = make_tum(tmp_path)
+    rec = TumReader().open(d, {})
+    want = [f.pose() for f in rec.frames]
+    gt = (d / "groundtruth.txt").read_text()
+    (d / "groundtruth.txt").write_text(gt.replace("1.010 2 0 0 ", "1.010,2,0,0,"))
+    assert [f.pose().tolist() for f in TumReader().open(d, {}).frames] == [T.tolist() for T in want]
+    for broken, message in (("1.010 2 0 0 0 0 1", "line 4: expected 8 columns"),
+                            ("1.010 2 zero 0 0 0 0 1", "pose values must be numbers"),
+                            ("t1.010 2 0 0 0 0 0 1", "line 4: timestamp 't1.010' is not a number")):
+        lines = gt.splitlines()
+        lines[3] = broken  # the row at 1.010, under two comment lines
+        (d / "groundtruth.txt").write_text("\n".join(lines) + "\n")
+        with pytest.raises(RecordingError, match=message) as err:
+            TumReader().open(d, {})
+        assert err.value.path.endswith("groundtruth.txt")
+
+
 def test_tum_recording_errors(tmp_path):
     d = make_tum(tmp_path)
     (d / "groundtruth.txt").unlink()
