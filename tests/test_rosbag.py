@@ -82,6 +82,25 @@ def test_frames_pair_colour_and_depth_by_stamp_and_chain_tf(lap, tmp_path):
                                atol=1e-9)
 
 
+def test_a_frames_pose_is_looked_up_once(lap, tmp_path, monkeypatch):
+    """An ingest asks a frame's pose before loading it (a still camera's frames), and the load
+    needs it again: the TF chain is interpolated once, and each caller gets its own copy."""
+    lap_dir, _ = lap
+    write_bag(lap_dir, tmp_path / "b.bag", "ros1", color=("rgb8",), depth="16UC1")
+    rec = RosbagReader().open(tmp_path / "b.bag", {})
+    lookups, lookup = [], TfTree.lookup
+    monkeypatch.setattr(TfTree, "lookup", lambda tree, *args, **kw: lookups.append(args) or lookup(tree, *args, **kw))
+    T = rec.frames[3].pose()
+    want = T.copy()
+    T[0, 3] += 99.0
+    frame = rec.frames[3].load()
+    assert len(lookups) == 1
+    np.testing.assert_array_equal(frame.T_world_camera, want)
+    np.testing.assert_array_equal(rec.frames[3].pose(), want)
+    rec.frames[4].load()
+    assert len(lookups) == 2
+
+
 def test_ambiguous_or_missing_topics_are_one_line(lap, tmp_path):
     lap_dir, _ = lap
     write_bag(lap_dir, tmp_path / "x.bag", "ros1", color=("rgb8", "jpeg"), depth="16UC1")

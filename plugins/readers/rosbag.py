@@ -303,10 +303,9 @@ class _Loader:
         except TfLookupError as exc:
             raise FrameError(f"{self.depth_topic} at {depth.stamp_ns / 1e9:.3f} s: {exc}", self.bag.path) from None
 
-    def frame(self, key: str, index: int, color: _Msg, depth: _Msg) -> Frame:
+    def frame(self, key: str, index: int, color: _Msg, depth: _Msg, T: np.ndarray) -> Frame:
         bag, intr = self.bag, self.intrinsics
         where = f"{self.depth_topic} at {depth.stamp_ns / 1e9:.3f} s"
-        T = self.pose(depth)
         try:
             depth_m = _decode_depth(bag.read(self.depth_topic, depth), bag.msgtype(self.depth_topic), self.depth_scale)
             where = f"{self.color_topic} at {color.stamp_ns / 1e9:.3f} s"
@@ -334,11 +333,15 @@ class _FrameLoad:
     color: _Msg
     depth: _Msg
 
+    T: np.ndarray | None = None  # the pose once looked up: the ingest asks before loading, and the load again
+
     def __call__(self) -> Frame:
-        return self.loader.frame(self.key, self.index, self.color, self.depth)
+        return self.loader.frame(self.key, self.index, self.color, self.depth, self.pose())
 
     def pose(self) -> np.ndarray:
-        return self.loader.pose(self.depth)
+        if self.T is None:
+            self.T = self.loader.pose(self.depth)
+        return self.T.copy()
 
 
 @hookimpl
