@@ -48,7 +48,7 @@ MAX_GROUP = 12
 def string_to_counts(s: str) -> np.ndarray:
     """The run lengths (int64) of a compressed string; ValueError for a character outside the
     alphabet, a string that ends inside a number, or a number too large for any image. In numpy:
-    a replay decodes every mask of every frame (pure Python took 0.5 ms a tum-fr1-rpy mask)."""
+    a replay decodes every mask of every frame (pure Python took 0.13 ms a tum-fr1-rpy mask)."""
     c = np.frombuffer(s.encode("utf-8"), dtype=np.uint8).astype(np.int64) - 48
     if c.size == 0:
         return np.zeros(0, dtype=np.int64)
