@@ -305,6 +305,35 @@ def test_7scenes_frames_depth_and_pose(tmp_path):
     assert rec.frames[2].load().rgb_path.endswith(".color.jpg")
 
 
+def with_bom(*paths: Path) -> None:
+    """Each text file saved again with a UTF-8 byte-order mark, as Windows editors save them."""
+    for path in paths:
+        path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+
+
+def test_text_files_with_a_byte_order_mark_read_as_without(tmp_path):
+    d = make_tum(tmp_path)
+    want = TumReader().open(d, {})
+    with_bom(*(d / name for name in ("rgb.txt", "depth.txt", "groundtruth.txt")))
+    got = TumReader().open(d, {})
+    assert [f.key for f in got.frames] == [f.key for f in want.frames]
+    assert [f.pose().tolist() for f in got.frames] == [f.pose().tolist() for f in want.frames]
+
+    scene = make_7scenes(tmp_path / "7")
+    want = SevenScenesReader().open(scene / "seq-01", {})
+    with_bom(scene / "camera-intrinsics.txt", scene / "seq-01" / "frame-000000.pose.txt")
+    got = SevenScenesReader().open(scene / "seq-01", {})
+    assert got.intrinsics == want.intrinsics
+    np.testing.assert_array_equal(got.frames[0].load().T_world_camera, want.frames[0].load().T_world_camera)
+
+    lap = tmp_path / "lap1"
+    shutil.copytree(Path(__file__).resolve().parent.parent / "sample_data" / "lap1", lap)
+    want = open_recording(lap)
+    with_bom(lap / "poses.txt")
+    got = open_recording(lap)
+    assert [f.pose().tolist() for f in got.frames] == [f.pose().tolist() for f in want.frames]
+
+
 def test_7scenes_scene_folder_and_defaults(tmp_path):
     scene = make_7scenes(tmp_path, with_intrinsics=False)
     # A scene folder is claimed, but opening it says which sequences to give instead of merging.

@@ -224,7 +224,7 @@ def read_matrix_pose(path: Path) -> np.ndarray:
     if not path.is_file():
         raise FrameError("pose file is missing", path)
     try:
-        tokens = path.read_text(encoding="utf-8", errors="replace").split()
+        tokens = path.read_text(encoding="utf-8-sig", errors="replace").split()
         values = np.array([float(t) for t in tokens], dtype=np.float64)
     except (OSError, ValueError) as exc:
         raise FrameError(f"cannot read pose as numbers ({exc})", path) from None
@@ -236,7 +236,7 @@ def read_matrix_pose(path: Path) -> np.ndarray:
 def read_matrix_file(path: Path, what: str) -> np.ndarray:
     """An intrinsics matrix file (3x3 or 4x4) as numbers; raises RecordingError."""
     try:
-        values = np.array([float(t) for t in path.read_text(encoding="utf-8").split()])
+        values = np.array([float(t) for t in path.read_text(encoding="utf-8-sig").split()])
     except (OSError, ValueError) as exc:
         raise RecordingError(f"cannot read {what} as numbers ({exc})", path) from None
     if values.size not in (9, 16) or not np.all(np.isfinite(values)):

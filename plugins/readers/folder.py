@@ -93,7 +93,7 @@ def open3d_intrinsics(folder: Path) -> tuple[tuple[float, float, float, float], 
     if path is None:
         return None
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(path.read_text(encoding="utf-8-sig"))
         K = np.array(doc["intrinsic_matrix"], dtype=np.float64).reshape(3, 3).T  # column-major
         size = (int(doc["width"]), int(doc["height"]))
     except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as exc:
@@ -148,7 +148,7 @@ def _same_stem(a: str, b: str) -> bool:
 def read_pose_lines(path: Path, stems: list[str]) -> dict[str, tuple[str, list[str]]]:
     """{stem: (where, fields)} from a pose file (see the module docstring for the line forms)."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise RecordingError(f"cannot read the pose file ({exc})", path) from None
     rows = [(n, line.replace(",", " ").split()) for n, line in enumerate(text.splitlines(), 1)

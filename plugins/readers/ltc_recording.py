@@ -54,7 +54,7 @@ def _read_meta(meta_path: Path) -> tuple[bytes, dict]:
 def _read_poses(poses_path: Path) -> tuple[str, dict[str, tuple[int, list[str]]], list[str]]:
     """poses.txt's text, {frame id: (line number, the 7 fields)} and the frame ids in file order."""
     try:
-        poses_text = poses_path.read_text()
+        poses_text = poses_path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise RecordingError(f"cannot read ({exc})", poses_path) from None
     poses: dict[str, tuple[int, list[str]]] = {}

@@ -47,7 +47,7 @@ def _tum_list(path: Path, columns: int, what: str) -> tuple[list[str], list[list
     if not path.is_file():
         raise RecordingError(f"TUM recording has no {path.name}", path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise RecordingError(f"cannot read {what} ({exc})", path) from None
     stamps, rest, lines = [], [], []
@@ -77,7 +77,7 @@ def _trajectory(path: Path) -> tuple[np.ndarray, np.ndarray, list[int]]:
     goes line by line, whose errors name the line. Non-finite values ("nan") are read, and refused
     per frame by load()."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # numpy warns of an empty file; the caller refuses it
             rows = np.loadtxt(io.StringIO(text), comments="#", ndmin=2, dtype=np.float64)
