@@ -108,9 +108,12 @@ def dask_options(command):
 @click.option("--revisit", is_flag=True,
               help="Map recordings already in the map again, as a new session (the same route driven again); "
                    "an interrupted revisit resumes with the same command.")
+@click.option("--frames", "frame_spec", metavar="START:STOP[:STEP]",
+              help="Map only this range of each recording's frames (0 is the first; e.g. 0:1000, 1000: or ::2), "
+                   "as its own session: a recording that loops its route, one loop per session.")
 @dask_options
 def ingest(recordings, map_path, detector, metric, policy, config_file, sets, calibration, checkpoint_every, strict,
-           reader, reader_opts, jobs, revisit, dask_spec, dask_batch):
+           reader, reader_opts, jobs, revisit, frame_spec, dask_spec, dask_batch):
     """Ingest RECORDING folders into the map MAP.h5 (resumes where an interrupted run stopped)."""
     # The handlers go in before anything slow (imports, reading settings, opening recordings), so
     # that a SIGTERM is never met by the default handler, which would end the process uncommitted.
@@ -120,9 +123,10 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         from ltc_cli.ingest.cluster import cluster_for
         from ltc_cli.ingest.session import ingest as run_ingest
         from ltc_cli.ingest.session_row import sessions_of
-        from ltc_cli.recordings.open import count_frames
+        from ltc_cli.recordings.open import count_frames, frame_range
         from ltc_cli.tools.calibration_file import load_calibration
 
+        frames = frame_range(frame_spec) if frame_spec is not None else None
         cfg = load_config(config_file, sets)
         if detector:
             cfg["detector"]["name"] = detector
@@ -133,11 +137,12 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         calib = load_calibration(calibration) if calibration else None
         r_opts = reader_options(reader_opts)
         with cluster_for(dask_spec, dask_batch) as cluster, \
-                progress_bar("ingest", lambda: count_frames(recordings, reader, r_opts, sessions_of(map_path))) as progress:
+                progress_bar("ingest", lambda: count_frames(recordings, reader, r_opts, sessions_of(map_path), frames)) as progress:
             summary = run_ingest(
                 list(recordings), map_path, cfg, reader=reader, reader_options=r_opts, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=warn_line,
                 should_stop=lambda: stop["signal"] is not None, jobs=jobs, revisit=revisit, cluster=cluster,
+                frames=frames,
             )
     visit = f"visit {summary.visit}; " if summary.visit > 1 else ""
     why = f" ({skipped_breakdown(summary.skipped_reasons)})" if summary.skipped_reasons else ""
@@ -227,7 +232,7 @@ def info(map_path, fmt):
                "v_other_learnt": _learnt_rate(s)}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
             | {"cameras": json.loads(s.get("cameras") or "[]"), "readers": json.loads(s.get("readers") or "[]"),
-               "reader_options": _json_list(s.get("reader_options"))}
+               "reader_options": _json_list(s.get("reader_options")), "frames": s.get("frames") or ""}
             for s in smap.sessions
         ],
         "up_rotation": np.asarray(smap.up_rotation).round(6).tolist(),
@@ -250,7 +255,7 @@ def info(map_path, fmt):
     click.echo(f"frames       {doc['frames']} ingested; {_plural(doc['events'], 'event')} logged")
     click.echo(f"sessions     {len(smap.sessions)}")
     for i, s in enumerate(doc["sessions"]):
-        visit = f"  visit {s['visit']}" if s["visit"] > 1 else ""
+        visit = (f"  visit {s['visit']}" if s["visit"] > 1 else "") + (f"  frames {s['frames']}" if s["frames"] else "")
         still = f", {s['frames_still']} still" if s.get("frames_still") else ""
         click.echo(f"  #{i} {s['started']}  {s['status']:<11} {s['frames_done']} frames ({s['frames_skipped']} skipped"
                    f"{still}){visit}  "

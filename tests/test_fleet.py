@@ -99,6 +99,17 @@ def test_still_frames_on_dask_make_the_single_process_map(tmp_path, cluster, mon
     assert_same_map(tmp_path / "one.h5", tmp_path / "dask.h5")
 
 
+def test_a_range_of_frames_on_dask_makes_the_single_process_map(laps, tmp_path, cluster):
+    """--frames on Dask: the workers open the whole recording and take the writer's positions in
+    the range, so they must cut it as the writer did (every other frame from the third: a position
+    k of the range is frame 2 + 2k)."""
+    frames = slice(2, None, 2)
+    ingest([laps[0]], tmp_path / "one.h5", defaults(), frames=frames)
+    s = ingest([laps[0]], tmp_path / "dask.h5", defaults(), frames=frames, cluster=cluster)
+    assert s.frames_done + s.frames_still + s.frames_skipped == 9  # frames 2, 4, ..., 18 of 20
+    assert_same_map(tmp_path / "one.h5", tmp_path / "dask.h5")
+
+
 @pytest.mark.parametrize("batch", [1, 3])  # 3 does not divide 20: the last task is short
 def test_any_batch_size_makes_the_same_map(laps, tmp_path, cluster, batch):
     ref, m = tmp_path / "ref.h5", tmp_path / "dask.h5"

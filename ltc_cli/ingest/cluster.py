@@ -101,7 +101,7 @@ class Cluster:
         rec = setup.recording
         job = RecordingJob(str(rec.path), setup.reader, setup.reader_options, rec.identity, plan.settings,
                            tuple(classes), setup.T_up, setup.floor_z, tuple(setup.depth_range),
-                           setup.depth_noise)
+                           setup.depth_noise, plan.frames)
         return RemoteAhead(rec.frames, keys, done, job, self.executor, 2 * self.batch * self.threads(), self.batch,
                            should_stop, keep)
 

@@ -26,7 +26,7 @@ from ltc_cli.errors import FrameError, LtcError
 from ltc_cli.pipeline.classes import ClassMapper
 from ltc_cli.pipeline.frame_modeling import ClassFlags, FrameModel, in_map_classes, model_frame, most_confident
 from ltc_cli.pipeline.visibility import ray_grid
-from ltc_cli.recordings.open import open_recording
+from ltc_cli.recordings.open import open_recording, select_frames
 from ltc_cli.recordings.saved_detections import detector_for
 from ltc_cli.types import Frame, FrameWarning, Intrinsics
 
@@ -75,10 +75,12 @@ class RecordingJob:
     floor_z: float | None
     depth_range: tuple
     depth_noise: float | None = None  # measured on the recording (modeling.depth_noise: auto)
+    frames: slice | None = None  # --frames: the range mapped; positions are into it, as the writer's
 
     def cache_key(self) -> tuple:
         det = self.settings["detector"]
-        return (self.path, self.reader, repr(self.reader_options), self.identity, repr(det), self.classes)
+        return (self.path, self.reader, repr(self.reader_options), self.identity, repr(det), self.classes,
+                repr(self.frames))
 
 
 @dataclass
@@ -106,7 +108,7 @@ class Failure:
 
 class _Opened:
     def __init__(self, job: RecordingJob):
-        self.recording = open_recording(job.path, job.reader, job.reader_options)
+        self.recording = select_frames(open_recording(job.path, job.reader, job.reader_options), job.frames)
         if self.recording.identity != job.identity:
             raise LtcError("a Dask worker reads another recording at this path than the writer did "
                            "(workers must see the same files)", job.path)

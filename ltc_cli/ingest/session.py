@@ -33,6 +33,7 @@ from ltc_cli import plugins
 from ltc_cli.config import settings_from
 from ltc_cli.errors import ConfigError, FrameError, LtcError
 from ltc_cli.ingest.frame_setup import frame_setup_for
+from ltc_cli.ingest.frame_warnings import detections_source, report_warnings
 from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_after, known_pose
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
 from ltc_cli.ingest.session_row import now_iso, session_row, sessions_of
@@ -42,7 +43,7 @@ from ltc_cli.pipeline.classes import ClassMapper
 from ltc_cli.pipeline.frame_modeling import (BOUNDS_SENSOR_NOISE, FrameModel, excess_noise, in_map_classes,
                                             most_confident)
 from ltc_cli.pipeline.mapper import Mapper
-from ltc_cli.recordings.open import as_ingested, open_recording
+from ltc_cli.recordings.open import as_ingested, open_recording, select_frames
 from ltc_cli.recordings.saved_detections import RECORDING_FIELD, detector_for
 from ltc_cli.text import SkippedFrames
 from ltc_cli.tools.calibration_file import calibration_settings, load_calibration
@@ -130,6 +131,7 @@ class Plan:
     metric: object
     policy: object
     revisit: bool = False
+    frames: slice | None = None  # --frames: the range of every recording's frames mapped (None: all)
 
 
 def frame_key(identity: str, frame: str, visit: int) -> str:
@@ -155,6 +157,7 @@ def ingest(
     jobs: int = 1,
     revisit: bool = False,
     cluster=None,
+    frames: slice | None = None,
 ) -> IngestSummary:
     """Ingest recordings into the map at ``map_path`` (created when it does not exist).
 
@@ -164,7 +167,8 @@ def ingest(
     ``jobs`` > 1 loads and detects frames ahead in that many threads; the map is the same (module
     docstring). ``cluster`` (a :class:`ltc_cli.ingest.cluster.Cluster`) runs loading, detection and
     object modeling on Dask workers instead (``jobs`` is then not used); the map is the same.
-    ``config`` is checked against the settings schema and never written into.
+    ``frames`` maps that range of each recording's frames (recordings/open.frame_range); a range
+    is its own session, resumed only by the same range. ``config`` is checked against the settings schema and never written into.
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ConfigError(f"jobs must be an integer >= 1, not {jobs!r}")
@@ -181,8 +185,9 @@ def ingest(
     # and options), so a revisit of a plain folder needs no -r again; options given win.
     sessions = sessions_of(map_path)
     how = [as_ingested(p, sessions, reader, reader_options) for p in recording_paths]
-    plan = _plan([open_recording(p, *h) for p, h in zip(recording_paths, how)], settings, calibration, revisit,
-                 opts.warn)
+    plan = _plan([select_frames(open_recording(p, *h), frames) for p, h in zip(recording_paths, how)], settings,
+                 calibration, revisit, opts.warn)
+    plan.frames = frames
     for setup, (r_name, r_opts) in zip(plan.setups, how):
         setup.reader, setup.reader_options = r_name, r_opts
 
@@ -226,28 +231,6 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
         depth_range = (max(lo, m_cfg["min_depth"]), min(hi, m_cfg["max_depth"]))
         setups.append(RecordingSetup(rec, det, R_up, floor_z, depth_range, depth_noise))
     return Plan(settings, calibration, setups, metric, policy, revisit)
-
-
-def _report_warnings(frame, warned: set, strict: bool, warn) -> None:
-    """Report the warnings a reader or detector left on a usable frame (a ``once`` key only the
-    first time in the recording); with ``strict`` the first one stops the ingest as a FrameError."""
-    for w in frame.warnings:
-        if w.once is not None:
-            if w.once in warned:
-                continue
-            warned.add(w.once)
-        if strict:
-            raise FrameError(w.message, w.path)
-        warn(str(w))
-
-
-def detections_source(det, frame) -> str:
-    """The file a frame's detections came from, for warnings: a recorded detector's JSON file,
-    else the image the detector saw."""
-    folder = getattr(det, "folder", None)
-    if folder is not None:
-        return str(Path(folder) / f"{frame.key}.json")
-    return str(frame.rgb_path or frame.key)
 
 
 def _still_frame(smap: SemanticMap, key: str, summary: IngestSummary, row: dict) -> None:
@@ -321,7 +304,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     row["frames_skipped"] += 1
                     opts.tick()
                     continue
-                _report_warnings(frame, warned, opts.strict, opts.warn)
+                report_warnings(frame, warned, opts.strict, opts.warn)
                 stage["load"] += t1 - t0
                 if T_known is None:
                     reach.add(frame.T_world_camera)

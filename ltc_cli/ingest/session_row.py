@@ -15,6 +15,7 @@ from ltc_cli import __version__
 from ltc_cli.errors import LtcError
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import load_sessions
+from ltc_cli.recordings.open import frames_text
 from ltc_cli.types import Recording
 
 if TYPE_CHECKING:
@@ -50,8 +51,10 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
     # An interrupted session over the same recordings is resumed, not started anew, so a resumed
     # ingest ends in exactly the map an uninterrupted one makes. A plain run resumes first visits
     # only (so it never adds frames to a revisit); --revisit resumes whichever visit was cut short.
+    # A range of the frames (--frames) is its own session, resumed only by the same range.
+    frames = frames_text(plan.frames)
     if (last is not None and last["status"] != "complete" and json.loads(last["recordings"]) == identities
-            and (plan.revisit or visit_of(last) == 1)):
+            and (plan.revisit or visit_of(last) == 1) and (last.get("frames") or "") == frames):
         last["status"] = "running"
         last["visit"] = visit_of(last)
         return len(smap.sessions) - 1, last
@@ -72,7 +75,7 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
         "detector": json.dumps(config["detector"]), "metric": config["association"]["metric"],
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
-        "frames_done": 0, "frames_skipped": 0, "frames_still": 0, "still_refs": "[]", "visit": visit,
+        "frames_done": 0, "frames_skipped": 0, "frames_still": 0, "still_refs": "[]", "visit": visit, "frames": frames,
         "up_rotation": json.dumps([np.asarray(s.R_up).round(9).tolist() for s in plan.setups]),
         "floor_z": json.dumps([None if s.floor_z is None else round(float(s.floor_z), 6) for s in plan.setups]),
         "cameras": json.dumps([camera_record(s.recording, s.depth_noise) for s in plan.setups]),

@@ -3,11 +3,12 @@ recognises the folder."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 from ltc_cli import plugins
-from ltc_cli.errors import RecordingError
+from ltc_cli.errors import ConfigError, RecordingError
 from ltc_cli.recordings.conventions import read_poses_as
 from ltc_cli.types import Recording
 
@@ -32,10 +33,51 @@ def open_recording(path, reader: str | None = None, options: dict | None = None)
     raise RecordingError(f"no reader recognises this folder (installed readers: {known})", p)
 
 
-def count_frames(paths, reader: str | None = None, options: dict | None = None, sessions: list = ()) -> int:
+FRAMES_HELP = "START:STOP[:STEP], positions in the recording's frame order (0 is the first; STOP not included)"
+
+
+def frame_range(text: str) -> slice:
+    """``--frames START:STOP[:STEP]`` as a slice of a recording's frames (Python's slicing: either
+    end may be left out, ``::2`` is every other frame). ConfigError for anything else: a position
+    is a whole number from 0, a step one from 1."""
+    parts = str(text).split(":")
+    try:
+        if not 2 <= len(parts) <= 3:
+            raise ValueError
+        values = [None if part.strip() == "" else int(part) for part in parts]
+    except ValueError:
+        raise ConfigError(f"--frames {text!r}: not {FRAMES_HELP}, e.g. 0:1000, 1000: or ::2") from None
+    if any(v is not None and v < 0 for v in values) or (len(values) == 3 and values[2] == 0):
+        raise ConfigError(f"--frames {text!r}: positions are 0 or more, a step 1 or more")
+    return slice(*values)
+
+
+def frames_text(frames: slice | None) -> str:
+    """A frame range as ``ltc info`` shows it and a session row keeps it ("" for every frame)."""
+    if frames is None:
+        return ""
+    start, stop, step = ("" if v is None else str(v) for v in (frames.start, frames.stop, frames.step))
+    return f"{start}:{stop}" + (f":{step}" if step not in ("", "1") else "")
+
+
+def select_frames(rec: Recording, frames: slice | None) -> Recording:
+    """The recording with only the frames of ``frames`` (None: all), each keeping its position
+    in the whole recording (``FrameRef.index``) and its key, so that a map's frame keys and events
+    are the same whichever range read them. RecordingError when the range holds no frame."""
+    if frames is None:
+        return rec
+    chosen = rec.frames[frames]
+    if not chosen:
+        raise RecordingError(f"--frames {frames_text(frames)} selects none of its {len(rec.frames)} frames", rec.path)
+    return dataclasses.replace(rec, frames=chosen)
+
+
+def count_frames(paths, reader: str | None = None, options: dict | None = None, sessions: list = (),
+                 frames: slice | None = None) -> int:
     """The number of frames of the recordings at ``paths`` (for a progress bar), each read as the
-    map's ``sessions`` read it (:func:`as_ingested`)."""
-    return sum(len(open_recording(p, *as_ingested(p, list(sessions), reader, options))) for p in paths)
+    map's ``sessions`` read it (:func:`as_ingested`), in the range ``frames``."""
+    return sum(len(select_frames(open_recording(p, *as_ingested(p, list(sessions), reader, options)), frames).frames)
+               for p in paths)
 
 
 def as_ingested(path, sessions: list, reader: str | None = None,
