@@ -2,6 +2,7 @@
 mapped as its own session. The range by hand, a range mapped as a recording holding only those
 frames maps, two ranges as two sessions, resuming only the same range, and the errors."""
 
+import json
 import shutil
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from ltc_cli.errors import ConfigError, RecordingError
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
 from ltc_cli.recordings.open import frame_range, frames_text, open_recording, select_frames
+from ltc_cli.validation import validate
 
 LAP1 = Path(__file__).resolve().parent.parent / "sample_data" / "lap1"
 N_FRAMES = 76
@@ -93,6 +95,11 @@ def test_two_ranges_are_two_sessions_and_a_run_over_all_is_then_a_no_op(tmp_path
     assert smap.frame_keys == load_map(whole).frame_keys  # the same keys as one session over all
     info = CliRunner().invoke(cli, ["info", str(m)])
     assert "frames 0:40" in info.output and "frames 40:" in info.output
+    r = CliRunner().invoke(cli, ["export", str(m), "--format", "json", "-o", str(tmp_path / "m.json")])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "m.json").read_text())
+    validate(doc, "export", "m.json")
+    assert [s["frames"] for s in doc["map"]["sessions"]] == ["0:40", "40:"]
 
 
 def test_an_interrupted_range_is_resumed_by_the_same_range_only(tmp_path):

@@ -188,6 +188,7 @@ def sessions_summary(smap: SemanticMap) -> list[dict]:
             "frames_done": int(s.get("frames_done", 0) or 0),
             "frames_skipped": int(s.get("frames_skipped", 0) or 0),
             "frames_still": int(s.get("frames_still", 0) or 0),
+            "frames": str(s.get("frames") or ""),
             "cameras": cameras if isinstance(cameras, list) else [],  # none in maps written before
         })
     return out
