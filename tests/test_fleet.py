@@ -300,6 +300,36 @@ maps:
     assert len(load_map(tmp_path / "maps" / "a.h5").sessions) == 2
 
 
+def test_a_manifest_gives_reader_options_and_frame_ranges(laps, tmp_path):
+    """A recording entry's ``options`` are ltc ingest's -r, its ``frames`` --frames: one folder
+    listed once per range makes the sessions those ingests make (pose_convention chosen because a
+    map read with it differs from one read without)."""
+    lap1 = laps[0]
+    manifest = write_manifest(tmp_path / "fleet.yaml", f"""\
+format: ltc-manifest/1
+maps:
+  - map: m.h5
+    recordings:
+      - {{path: {lap1}, frames: "0:12", options: {{pose_convention: inverted}}}}
+      - {{path: {lap1}, frames: "12:", options: {{pose_convention: inverted}}}}
+""")
+    rows = ingest_many(manifest, writers=1)
+    assert [r.status for r in rows] == ["ok", "ok"], [r.error for r in rows]
+    seq = tmp_path / "seq.h5"
+    for frames in (slice(0, 12), slice(12, None)):
+        ingest([lap1], seq, defaults(), reader_options={"pose_convention": "inverted"}, frames=frames)
+    assert_same_map(seq, tmp_path / "m.h5")
+    assert [s["frames"] for s in load_map(tmp_path / "m.h5").sessions] == ["0:12", "12:"]
+    read_so, plain = tmp_path / "inverted.h5", tmp_path / "plain.h5"
+    ingest([lap1], read_so, defaults(), reader_options={"pose_convention": "inverted"}, frames=slice(0, 12))
+    ingest([lap1], plain, defaults(), frames=slice(0, 12))
+    a, b = load_map(read_so).objects.center, load_map(plain).objects.center
+    assert a.shape != b.shape or not np.allclose(a, b)  # the option changes the map
+    bad = write_manifest(tmp_path / "bad.yaml", f"format: ltc-manifest/1\nmaps: [{{map: x.h5, recordings: [{{path: {lap1}, frames: '5'}}]}}]\n")
+    with pytest.raises(LtcError, match=r"at maps.0.recordings.0: --frames '5': not START:STOP"):
+        ingest_many(bad)
+
+
 def test_a_failing_recording_is_reported_and_the_others_go_on(laps, tmp_path):
     lap1, lap2, lap3 = laps
     manifest = write_manifest(tmp_path / "fleet.yaml", f"""\

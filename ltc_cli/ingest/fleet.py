@@ -22,7 +22,7 @@ from ltc_cli import plugins
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.manifest import MapJob, load_manifest
 from ltc_cli.ingest.session import IngestSummary, ingest
-from ltc_cli.recordings.open import open_recording
+from ltc_cli.recordings.open import open_recording, select_frames
 
 
 @dataclass
@@ -58,7 +58,8 @@ def _write_map(job: MapJob, cluster, options: dict, should_stop, warn, progress)
             continue
         t0 = time.perf_counter()
         try:
-            s = ingest([rec.path], job.path, job.config, reader=rec.reader, calibration=job.calibration,
+            s = ingest([rec.path], job.path, job.config, reader=rec.reader, reader_options=rec.options,
+                       frames=rec.frames, calibration=job.calibration,
                        cluster=cluster, should_stop=should_stop, warn=lambda m, r=rec.path: warn(f"{r}: {m}"),
                        progress=progress, **options)
             row.summary, row.objects = s, s.objects
@@ -138,7 +139,7 @@ def manifest_frames(manifest) -> int:
     for job in load_manifest(manifest):
         for rec in job.recordings:
             try:
-                total += len(open_recording(rec.path, rec.reader))
+                total += len(select_frames(open_recording(rec.path, rec.reader, rec.options), rec.frames))
             except LtcError:
                 pass  # reported as that recording's failure when its turn comes
     return total

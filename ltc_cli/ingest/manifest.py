@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ltc_cli.config import load_config, read_yaml
 from ltc_cli.errors import ConfigError
+from ltc_cli.recordings.open import frame_range
 from ltc_cli.tools.calibration_file import load_calibration
 from ltc_cli.validation import validate
 
@@ -26,6 +27,8 @@ class RecordingEntry:
     path: Path
     time: dt.datetime | None
     reader: str | None
+    options: dict | None = None  # reader options (ltc ingest -r)
+    frames: slice | None = None  # ltc ingest --frames
 
 
 @dataclass
@@ -57,11 +60,15 @@ def parse_time(text: str) -> dt.datetime:
     return t if t.tzinfo is not None else t.replace(tzinfo=dt.timezone.utc)
 
 
-def _recording(item, base: Path) -> RecordingEntry:
+def _recording(item, base: Path, where: str, manifest: Path) -> RecordingEntry:
     if isinstance(item, str):
         item = {"path": item}
+    try:
+        frames = frame_range(item["frames"]) if "frames" in item else None
+    except ConfigError as exc:
+        raise ConfigError(f"at {where}: {exc.message}", manifest) from None
     return RecordingEntry(base / item["path"], parse_time(item["time"]) if "time" in item else None,
-                          item.get("format"))
+                          item.get("format"), item.get("options"), frames)
 
 
 def _in_time_order(recs: list[RecordingEntry], where: str, manifest: Path) -> list[RecordingEntry]:
@@ -94,6 +101,7 @@ def load_manifest(path) -> list[MapJob]:
         config = load_config(base / config_file if config_file else None, [*doc.get("set", []), *m.get("set", [])])
         cal_file = m.get("calibration", doc.get("calibration"))
         calibration = load_calibration(base / cal_file) if cal_file else None
-        recs = _in_time_order([_recording(r, base) for r in m["recordings"]], f"{where}.recordings", manifest)
+        recs = _in_time_order([_recording(r, base, f"{where}.recordings.{k}", manifest)
+                               for k, r in enumerate(m["recordings"])], f"{where}.recordings", manifest)
         jobs.append(MapJob(m.get("name") or map_path.name, map_path, config, calibration, recs))
     return jobs
