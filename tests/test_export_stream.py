@@ -52,11 +52,13 @@ GOLDEN = {
 @pytest.mark.parametrize("fmt,origin", list(GOLDEN))
 def test_streamed_text_is_the_text_written_before(fmt, origin):
     text = b"".join(export_chunks(big_map(300, seed=7), fmt, origin, "big.h5"))
-    if fmt == "json":  # sessions carry their cameras since the fiftieth round (none in this map) and their
-        # still frames since the fifty-fourth (none)
+    if fmt == "json":  # sessions carry their cameras since the fiftieth round (none in this map), their
+        # still frames since the fifty-fourth (none) and their frame range since the fifty-seventh (all)
         assert text.count(b'"cameras": []') == 1 and text.count(b'"frames_still": 0') == 1
+        assert text.count(b'"frames": ""') == 1
         text = re.sub(rb',\s*"cameras": \[\]', b"", text)
         text = re.sub(rb',\s*"frames_still": 0', b"", text)
+        text = re.sub(rb',\s*"frames": ""', b"", text)
     assert (len(text), hashlib.sha256(text).hexdigest()) == GOLDEN[(fmt, origin)]
 
 
