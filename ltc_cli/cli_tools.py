@@ -170,14 +170,15 @@ def still_text(counted: dict) -> str:
 @click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=READER_OPTION_HELP)
 @click.option("--config", "config_file", type=click.Path(dir_okay=False), help="YAML file of settings (the frames and modeling sections).")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Override one setting, e.g. --set frames.still_move=null")
+@click.option("--frames", "frame_spec", metavar="START:STOP[:STEP]", help="Check only this range of its frames, as ltc ingest --frames.")
 @click.option("--json", "as_json", is_flag=True, help="Print it as JSON.")
-def check_cmd(recording, reader, reader_opts, config_file, sets, as_json):
+def check_cmd(recording, reader, reader_opts, config_file, sets, frame_spec, as_json):
     """Say what an ingest would take from RECORDING, without mapping it: the camera, the depth range
     and error, the up axis and floor, whether its poses fit its depth, and how many frames a still
     camera's are (a few frames are read; nothing is written)."""
     from ltc_cli.cli import camera_text
     from ltc_cli.ingest.recording_check import check_recording
-    from ltc_cli.recordings.open import open_recording
+    from ltc_cli.recordings.open import frame_range, open_recording, select_frames
 
     warnings: list = []
 
@@ -185,9 +186,10 @@ def check_cmd(recording, reader, reader_opts, config_file, sets, as_json):
         warnings.append(message)
         warn_line(message)
 
+    frames = frame_range(frame_spec) if frame_spec is not None else None
     cfg = load_config(config_file, sets)
-    doc = check_recording(open_recording(recording, reader, reader_options(reader_opts)), warn=warn,
-                          frames_settings=cfg["frames"])
+    doc = check_recording(select_frames(open_recording(recording, reader, reader_options(reader_opts)), frames),
+                          warn=warn, frames_settings=cfg["frames"])
     doc["warnings"] = warnings
     if as_json:
         click.echo(json.dumps(doc, indent=2))

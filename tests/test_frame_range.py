@@ -126,3 +126,12 @@ def test_a_bad_range_is_one_line_and_writes_no_map(tmp_path):
         r = CliRunner().invoke(cli, ["ingest", str(LAP1), "--map", str(m), "--frames", spec])
         assert r.exit_code == 1 and r.output.strip().splitlines()[-1].startswith(message), r.output
         assert "Traceback" not in r.output and not m.exists()
+
+
+def test_check_looks_at_the_range_alone(tmp_path):
+    for spec, n in (("0:11", 11), ("::2", 38), ("70:", 6)):
+        r = CliRunner().invoke(cli, ["check", str(LAP1), "--frames", spec, "--json"])
+        assert r.exit_code == 0, r.output
+        assert json.loads(r.stdout)["frames"] == n
+    r = CliRunner().invoke(cli, ["check", str(LAP1), "--frames", "76:"])
+    assert r.exit_code == 1 and "selects none of its 76 frames" in r.output
