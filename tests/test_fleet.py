@@ -21,7 +21,7 @@ from ltc_cli import plugins
 from ltc_cli.config import defaults
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.cluster import Cluster, DaskError, open_cluster
-from ltc_cli.ingest.fleet import ingest_many
+from ltc_cli.ingest.fleet import ingest_many, summary_table
 from ltc_cli.ingest.remote import depth_pixels, pack_depth, unpack_depth
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
@@ -315,6 +315,8 @@ maps:
 """)
     rows = ingest_many(manifest, writers=1)
     assert [r.status for r in rows] == ["ok", "ok"], [r.error for r in rows]
+    table = summary_table(rows)
+    assert " [0:12] " in table[1] and " [12:] " in table[2]
     seq = tmp_path / "seq.h5"
     for frames in (slice(0, 12), slice(12, None)):
         ingest([lap1], seq, defaults(), reader_options={"pose_convention": "inverted"}, frames=frames)

@@ -22,7 +22,7 @@ from ltc_cli import plugins
 from ltc_cli.errors import LtcError
 from ltc_cli.ingest.manifest import MapJob, load_manifest
 from ltc_cli.ingest.session import IngestSummary, ingest
-from ltc_cli.recordings.open import open_recording, select_frames
+from ltc_cli.recordings.open import frames_text, open_recording, select_frames
 
 
 @dataclass
@@ -38,6 +38,7 @@ class Outcome:
     error: str = ""
     objects: int | None = None  # in the map after this recording
     seconds: float = 0.0
+    frames: str = ""  # the range of its frames (the manifest's frames), "" for all
 
 
 def _ignore(*_args) -> None:
@@ -52,7 +53,8 @@ def _write_map(job: MapJob, cluster, options: dict, should_stop, warn, progress)
     """The writer of one map: its recordings in order; a failure is recorded and the next goes on."""
     out = []
     for rec in job.recordings:
-        row = Outcome(job.name, str(job.path), str(rec.path), rec.time.isoformat() if rec.time else "", "not run")
+        row = Outcome(job.name, str(job.path), str(rec.path), rec.time.isoformat() if rec.time else "", "not run",
+                      frames=frames_text(rec.frames))
         out.append(row)
         if should_stop():
             continue
@@ -115,7 +117,8 @@ def summary_table(rows: list[Outcome]) -> list[str]:
         nums = (f"{s.frames_done:>7} {s.frames_skipped:>5} {s.frames_still:>5} {s.frames_already:>5} {s.created:>5} "
                 f"{s.removed:>5} " if s is not None else f"{'-':>7} {'-':>5} {'-':>5} {'-':>5} {'-':>5} {'-':>5} ")
         objects = "-" if r.objects is None else str(r.objects)
-        lines.append(f"{r.map_name[:16]:<16} {_tail(r.recording, 28):<28} {r.status:<11} {nums}{objects:>7} "
+        label = f"{r.recording} [{r.frames}]" if r.frames else r.recording
+        lines.append(f"{r.map_name[:16]:<16} {_tail(label, 28):<28} {r.status:<11} {nums}{objects:>7} "
                      f"{r.seconds:>7.1f}")
     lines += [f"failed: {r.error}" for r in rows if r.status == "failed"]
     return lines
