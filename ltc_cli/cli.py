@@ -137,7 +137,8 @@ def ingest(recordings, map_path, detector, metric, policy, config_file, sets, ca
         calib = load_calibration(calibration) if calibration else None
         r_opts = reader_options(reader_opts)
         with cluster_for(dask_spec, dask_batch) as cluster, \
-                progress_bar("ingest", lambda: count_frames(recordings, reader, r_opts, sessions_of(map_path), frames)) as progress:
+                progress_bar("ingest", lambda: count_frames(recordings, reader, r_opts, sessions_of(map_path),
+                                                            frames)) as progress:
             summary = run_ingest(
                 list(recordings), map_path, cfg, reader=reader, reader_options=r_opts, calibration=calib,
                 checkpoint_every=checkpoint_every, strict=strict, progress=progress, warn=warn_line,

@@ -170,7 +170,8 @@ def still_text(counted: dict) -> str:
 @click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE", help=READER_OPTION_HELP)
 @click.option("--config", "config_file", type=click.Path(dir_okay=False), help="YAML file of settings (the frames and modeling sections).")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Override one setting, e.g. --set frames.still_move=null")
-@click.option("--frames", "frame_spec", metavar="START:STOP[:STEP]", help="Check only this range of its frames, as ltc ingest --frames.")
+@click.option("--frames", "frame_spec", metavar="START:STOP[:STEP]",
+              help="Check only this range of its frames, as ltc ingest --frames.")
 @click.option("--json", "as_json", is_flag=True, help="Print it as JSON.")
 def check_cmd(recording, reader, reader_opts, config_file, sets, frame_spec, as_json):
     """Say what an ingest would take from RECORDING, without mapping it: the camera, the depth range

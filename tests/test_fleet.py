@@ -327,7 +327,8 @@ maps:
     ingest([lap1], plain, defaults(), frames=slice(0, 12))
     a, b = load_map(read_so).objects.center, load_map(plain).objects.center
     assert a.shape != b.shape or not np.allclose(a, b)  # the option changes the map
-    bad = write_manifest(tmp_path / "bad.yaml", f"format: ltc-manifest/1\nmaps: [{{map: x.h5, recordings: [{{path: {lap1}, frames: '5'}}]}}]\n")
+    bad = write_manifest(tmp_path / "bad.yaml",
+                         f"format: ltc-manifest/1\nmaps: [{{map: x.h5, recordings: [{{path: {lap1}, frames: '5'}}]}}]\n")
     with pytest.raises(LtcError, match=r"at maps.0.recordings.0: --frames '5': not START:STOP"):
         ingest_many(bad)
 

@@ -75,7 +75,8 @@ def test_a_range_maps_as_a_recording_of_those_frames(tmp_path):
         np.testing.assert_array_equal(v, b.objects.columns()[k], err_msg=k)
     # The same events; the range's frames keep their positions in the whole recording (the cut
     # folder's are 0-19), and their keys its identity.
-    assert [(e.kind, e.object_id, e.other_id) for e in a.events] == [(e.kind, e.object_id, e.other_id) for e in b.events]
+    assert [(e.kind, e.object_id, e.other_id) for e in a.events] == \
+        [(e.kind, e.object_id, e.other_id) for e in b.events]
     assert {(e.frame - 20) // 2 for e in a.events if e.frame >= 0} == {e.frame for e in b.events if e.frame >= 0}
     assert a.sessions[0]["frames"] == "20:60:2" and b.sessions[0]["frames"] == ""
 

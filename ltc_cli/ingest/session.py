@@ -168,7 +168,8 @@ def ingest(
     docstring). ``cluster`` (a :class:`ltc_cli.ingest.cluster.Cluster`) runs loading, detection and
     object modeling on Dask workers instead (``jobs`` is then not used); the map is the same.
     ``frames`` maps that range of each recording's frames (recordings/open.frame_range); a range
-    is its own session, resumed only by the same range. ``config`` is checked against the settings schema and never written into.
+    is its own session, resumed only by the same range. ``config`` is checked against the settings
+    schema and never written into.
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ConfigError(f"jobs must be an integer >= 1, not {jobs!r}")

@@ -40,7 +40,7 @@ SESSION_COLUMNS = {
     "frames_still": "i",  # frames not mapped: the camera had not moved (ingest/keyframes.py); 0 in older maps
     "still_refs": "s",  # per recording, the last mapped pose (JSON), that a resumed session goes on from
     "reader_options": "s",  # the reader options the ingest was given (-r, JSON), to read it again so; "" in older maps
-    "frames": "s",  # the range of the recordings' frames mapped (--frames START:STOP[:STEP]); "" for all, and in older maps
+    "frames": "s",  # the range of the recordings' frames mapped (--frames); "" for all, and in older maps
 }
 # Checksummed metadata (libver v108); free-space records kept in the file, so freed space is reused.
 FILE_OPTIONS = {"libver": ("v108", "latest"), "fs_strategy": "fsm", "fs_persist": True, "fs_threshold": 1}
