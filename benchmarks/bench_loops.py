@@ -7,7 +7,7 @@ loop the same poses shifted in time; bench_check.long_tum), mapped with the fp32
 
 Prints each map's objects per class against the counted truth (bench_real.py), the objects that the
 end of the one long session removed as unconfirmed though detected from two views or more, and
-whether the loop-per-session map kept the first loop's ids. Needs ../shared. About 8 s a loop.
+whether the loop-per-session map kept the first loop's ids. Needs ../shared. About 10 s a loop.
 
     python benchmarks/bench_loops.py [--loops 43] [--extra 0] [--model ../shared/models/yolov8n-seg_fp32.onnx]
 """
