@@ -179,7 +179,7 @@ def check_cmd(recording, reader, reader_opts, config_file, sets, frame_spec, as_
     camera's are (a few frames are read; nothing is written)."""
     from ltc_cli.cli import camera_text
     from ltc_cli.ingest.recording_check import check_recording
-    from ltc_cli.recordings.open import frame_range, open_recording, select_frames
+    from ltc_cli.recordings.open import frame_range, open_recording
 
     warnings: list = []
 
@@ -189,8 +189,8 @@ def check_cmd(recording, reader, reader_opts, config_file, sets, frame_spec, as_
 
     frames = frame_range(frame_spec) if frame_spec is not None else None
     cfg = load_config(config_file, sets)
-    doc = check_recording(select_frames(open_recording(recording, reader, reader_options(reader_opts)), frames),
-                          warn=warn, frames_settings=cfg["frames"])
+    doc = check_recording(open_recording(recording, reader, reader_options(reader_opts)), warn=warn,
+                          frames_settings=cfg["frames"], frames=frames)
     doc["warnings"] = warnings
     if as_json:
         click.echo(json.dumps(doc, indent=2))

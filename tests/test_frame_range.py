@@ -13,6 +13,7 @@ from click.testing import CliRunner
 from ltc_cli.cli import cli
 from ltc_cli.config import defaults
 from ltc_cli.errors import ConfigError, RecordingError
+from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.session import ingest
 from ltc_cli.map.store import load_map
 from ltc_cli.recordings.open import frame_range, frames_text, open_recording, select_frames
@@ -65,7 +66,10 @@ def cut(root: Path, keep: range) -> Path:
     return rec
 
 
-def test_a_range_maps_as_a_recording_of_those_frames(tmp_path):
+def test_a_range_maps_as_a_recording_of_those_frames(tmp_path, monkeypatch):
+    # Under one set-up: a range takes the whole recording's (the test below), a cut folder its own.
+    whole = frame_setup_for(open_recording(LAP1))
+    monkeypatch.setattr("ltc_cli.ingest.session.frame_setup_for", lambda rec, warn=None: whole)
     ingest([LAP1], tmp_path / "range.h5", defaults(), frames=slice(20, 60, 2))
     ingest([cut(tmp_path, range(20, 60, 2))], tmp_path / "cut.h5", defaults())
     a, b = load_map(tmp_path / "range.h5"), load_map(tmp_path / "cut.h5")
@@ -101,6 +105,29 @@ def test_two_ranges_are_two_sessions_and_a_run_over_all_is_then_a_no_op(tmp_path
     doc = json.loads((tmp_path / "m.json").read_text())
     validate(doc, "export", "m.json")
     assert [s["frames"] for s in doc["map"]["sessions"]] == ["0:40", "40:"]
+
+
+def test_every_range_is_set_up_as_the_whole_recording(tmp_path):
+    """The floor and the depth error (and an estimated up axis) are measured on the whole
+    recording's frames, whatever the range: its sessions are in one map frame. Measured on the
+    ranges' own frames, lap 1's floor is 0.0005 m in 0:40 and -0.0001 m in 40:, its depth error
+    0.00398 and 0.00406 m at 1 m; 0.0 m and 0.00416 m on the whole."""
+    m, whole = tmp_path / "m.h5", tmp_path / "whole.h5"
+    ingest([LAP1], m, defaults(), frames=slice(0, 40))
+    ingest([LAP1], m, defaults(), frames=slice(40, None))
+    ingest([LAP1], whole, defaults())
+    setup = frame_setup_for(open_recording(LAP1))
+    ref = load_map(whole).sessions[0]
+    assert json.loads(ref["floor_z"]) == [round(setup.floor_z, 6)]
+    assert json.loads(ref["cameras"])[0]["depth_noise"] == round(setup.depth_noise, 5)
+    for row in load_map(m).sessions:
+        assert [row[k] for k in ("up_rotation", "floor_z", "cameras")] == \
+            [ref[k] for k in ("up_rotation", "floor_z", "cameras")], row["frames"]
+    # ltc check says so too.
+    for spec in ("0:40", "40:", "::3"):
+        r = CliRunner().invoke(cli, ["check", str(LAP1), "--frames", spec, "--json"])
+        doc = json.loads(r.stdout)
+        assert (doc["floor_z"], doc["camera"]["depth_noise"]) == (round(setup.floor_z, 4), round(setup.depth_noise, 5))
 
 
 def test_an_interrupted_range_is_resumed_by_the_same_range_only(tmp_path):

@@ -11,6 +11,7 @@ from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.keyframes import fixed_camera_warning, known_pose, still_census
 from ltc_cli.ingest.pose_check import pose_message
 from ltc_cli.ingest.session_row import camera_record
+from ltc_cli.recordings.open import select_frames
 
 
 def still_frames(rec, frames_settings: dict) -> dict | None:
@@ -27,13 +28,16 @@ def still_frames(rec, frames_settings: dict) -> dict | None:
                 n_still, len(rec.frames), reach, frames_settings, ahead=True)}
 
 
-def check_recording(rec, warn=None, frames_settings: dict | None = None) -> dict:
+def check_recording(rec, warn=None, frames_settings: dict | None = None, frames: slice | None = None) -> dict:
     """The recording as an ingest's set-up sees it, as a JSON-ready dict; ``warn`` gets the set-up's
     warning lines (the poses' included), and one when most frames are still by ``frames_settings``
-    (the settings' ``frames`` section; None: not counted)."""
+    (the settings' ``frames`` section; None: not counted). ``frames``: the range an ingest would
+    map (``--frames``); its frames are counted, and the set-up is the whole recording's, as an
+    ingest of the range measures it."""
     verdicts: list = []
+    part = select_frames(rec, frames)
     setup = frame_setup_for(rec, warn=warn, on_poses=verdicts.append)
-    counted = None if frames_settings is None else still_frames(rec, frames_settings)
+    counted = None if frames_settings is None else still_frames(part, frames_settings)
     line = None if counted is None else counted.pop("fixed")
     if line and warn is not None:
         warn(line)
@@ -43,7 +47,7 @@ def check_recording(rec, warn=None, frames_settings: dict | None = None) -> dict
     return {
         "recording": str(rec.path),
         "reader": rec.format,
-        "frames": len(rec.frames),
+        "frames": len(part.frames),
         "still_frames": counted,
         "camera": camera_record(rec, setup.depth_noise),
         "depth_range": list(rec.depth_range) if rec.depth_range else None,

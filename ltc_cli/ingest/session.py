@@ -186,9 +186,8 @@ def ingest(
     # and options), so a revisit of a plain folder needs no -r again; options given win.
     sessions = sessions_of(map_path)
     how = [as_ingested(p, sessions, reader, reader_options) for p in recording_paths]
-    plan = _plan([select_frames(open_recording(p, *h), frames) for p, h in zip(recording_paths, how)], settings,
-                 calibration, revisit, opts.warn)
-    plan.frames = frames
+    plan = _plan([open_recording(p, *h) for p, h in zip(recording_paths, how)], settings, calibration, revisit,
+                 opts.warn, frames)
     for setup, (r_name, r_opts) in zip(plan.setups, how):
         setup.reader, setup.reader_options = r_name, r_opts
 
@@ -211,18 +210,24 @@ def ingest(
     return summary
 
 
-def _plan(recordings: list[Recording], settings: dict, calibration, revisit: bool, warn=None) -> Plan:
-    """Plugins and per-recording set-up (up axis, floor, depth range), before the map is opened."""
+def _plan(recordings: list[Recording], settings: dict, calibration, revisit: bool, warn=None,
+          frames: slice | None = None) -> Plan:
+    """Plugins and per-recording set-up (up axis, floor, depth range), before the map is opened.
+
+    The set-up is measured on the whole recording whatever the range ``frames`` mapped: measured on
+    a range's own frames, tum-fr1-rpy's two halves were levelled 1.3 degrees apart (and the floor
+    and depth error differed), so one recording's sessions were not in one map frame."""
     metric = plugins.get("metrics", settings["association"]["metric"]).factory(settings["association"])
     policy = plugins.get("policies", settings["maintenance"]["policy"]).factory(settings["maintenance"])
     save_to = settings["detector"].get("save_to")
     if save_to is not None and len(recordings) > 1 and RECORDING_FIELD not in save_to:
         raise ConfigError("detector.save_to takes one recording per folder (their frames' names may collide): "
                           f"put {RECORDING_FIELD} in it, which names each recording's folder")
-    detectors = [detector_for(rec, settings["detector"]) for rec in recordings]
+    chosen = [select_frames(rec, frames) for rec in recordings]
+    detectors = [detector_for(rec, settings["detector"]) for rec in chosen]
     m_cfg = settings["modeling"]
     setups = []
-    for rec, det in zip(recordings, detectors):
+    for rec, part, det in zip(recordings, chosen, detectors):
         R_up, floor_z, depth_noise = frame_setup_for(rec, warn=warn)
         if warn is not None and m_cfg["depth_noise"] == "auto" and excess_noise(depth_noise) > 0:
             warn(f"{rec.path}: the depth error measured on its frames is {depth_noise:.3f} m at 1 m, over the "
@@ -230,8 +235,8 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
                  f"overrides the measure)")
         lo, hi = rec.depth_range or (m_cfg["min_depth"], m_cfg["max_depth"])
         depth_range = (max(lo, m_cfg["min_depth"]), min(hi, m_cfg["max_depth"]))
-        setups.append(RecordingSetup(rec, det, R_up, floor_z, depth_range, depth_noise))
-    return Plan(settings, calibration, setups, metric, policy, revisit)
+        setups.append(RecordingSetup(part, det, R_up, floor_z, depth_range, depth_noise))
+    return Plan(settings, calibration, setups, metric, policy, revisit, frames)
 
 
 def _still_frame(smap: SemanticMap, key: str, summary: IngestSummary, row: dict) -> None:
