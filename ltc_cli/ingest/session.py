@@ -36,7 +36,7 @@ from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.frame_warnings import detections_source, report_warnings
 from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_after, known_pose
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
-from ltc_cli.ingest.session_row import now_iso, session_row, sessions_of
+from ltc_cli.ingest.session_row import kept_setup, now_iso, session_row, sessions_of
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
@@ -186,8 +186,9 @@ def ingest(
     # and options), so a revisit of a plain folder needs no -r again; options given win.
     sessions = sessions_of(map_path)
     how = [as_ingested(p, sessions, reader, reader_options) for p in recording_paths]
-    plan = _plan([open_recording(p, *h) for p, h in zip(recording_paths, how)], settings, calibration, revisit,
-                 opts.warn, frames)
+    recordings = [open_recording(p, *h) for p, h in zip(recording_paths, how)]
+    kept = [kept_setup(rec, *h, sessions) for rec, h in zip(recordings, how)]
+    plan = _plan(recordings, settings, calibration, revisit, opts.warn, frames, kept)
     for setup, (r_name, r_opts) in zip(plan.setups, how):
         setup.reader, setup.reader_options = r_name, r_opts
 
@@ -211,12 +212,13 @@ def ingest(
 
 
 def _plan(recordings: list[Recording], settings: dict, calibration, revisit: bool, warn=None,
-          frames: slice | None = None) -> Plan:
+          frames: slice | None = None, kept: list | None = None) -> Plan:
     """Plugins and per-recording set-up (up axis, floor, depth range), before the map is opened.
 
     The set-up is measured on the whole recording whatever the range ``frames`` mapped: measured on
     a range's own frames, tum-fr1-rpy's two halves were levelled 1.3 degrees apart (and the floor
-    and depth error differed), so one recording's sessions were not in one map frame."""
+    and depth error differed), so one recording's sessions were not in one map frame. A recording
+    the map has read before takes the set-up it had then (``kept``, session_row.kept_setup)."""
     metric = plugins.get("metrics", settings["association"]["metric"]).factory(settings["association"])
     policy = plugins.get("policies", settings["maintenance"]["policy"]).factory(settings["maintenance"])
     save_to = settings["detector"].get("save_to")
@@ -227,8 +229,8 @@ def _plan(recordings: list[Recording], settings: dict, calibration, revisit: boo
     detectors = [detector_for(rec, settings["detector"]) for rec in chosen]
     m_cfg = settings["modeling"]
     setups = []
-    for rec, part, det in zip(recordings, chosen, detectors):
-        R_up, floor_z, depth_noise = frame_setup_for(rec, warn=warn)
+    for rec, part, det, before in zip(recordings, chosen, detectors, kept or [None] * len(recordings)):
+        R_up, floor_z, depth_noise = before or frame_setup_for(rec, warn=warn)
         if warn is not None and m_cfg["depth_noise"] == "auto" and excess_noise(depth_noise) > 0:
             warn(f"{rec.path}: the depth error measured on its frames is {depth_noise:.3f} m at 1 m, over the "
                  f"{BOUNDS_SENSOR_NOISE} the size rules hold: they allow for it (a number in modeling.depth_noise "

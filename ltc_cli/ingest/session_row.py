@@ -13,6 +13,7 @@ import numpy as np
 
 from ltc_cli import __version__
 from ltc_cli.errors import LtcError
+from ltc_cli.ingest.frame_setup import FrameSetup
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import load_sessions
 from ltc_cli.recordings.open import frames_text
@@ -39,7 +40,9 @@ def camera_record(rec: Recording, depth_noise: float | None = None) -> dict:
            **{k: round(float(getattr(intr, k)), 6) for k in ("fx", "fy", "cx", "cy")}}
     named = (rec.meta or {}).get("camera")  # recording.yaml's camera section is no name
     row |= {"camera": named} if isinstance(named, str) and named else {}
-    return row | ({"depth_noise": round(float(depth_noise), 5)} if depth_noise is not None else {})
+    # Unrounded: a resumed session or a revisit sets the recording up from it (kept_setup), and
+    # must map as an uninterrupted run does, to the bit.
+    return row | ({"depth_noise": float(depth_noise)} if depth_noise is not None else {})
 
 
 def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
@@ -76,8 +79,8 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
         "frames_done": 0, "frames_skipped": 0, "frames_still": 0, "still_refs": "[]", "visit": visit, "frames": frames,
-        "up_rotation": json.dumps([np.asarray(s.R_up).round(9).tolist() for s in plan.setups]),
-        "floor_z": json.dumps([None if s.floor_z is None else round(float(s.floor_z), 6) for s in plan.setups]),
+        "up_rotation": json.dumps([np.asarray(s.R_up, dtype=np.float64).tolist() for s in plan.setups]),
+        "floor_z": json.dumps([None if s.floor_z is None else float(s.floor_z) for s in plan.setups]),
         "cameras": json.dumps([camera_record(s.recording, s.depth_noise) for s in plan.setups]),
     }
     smap.sessions.append(row)
@@ -93,3 +96,34 @@ def sessions_of(map_path) -> list:
         return load_sessions(map_path)
     except LtcError:
         return []
+
+
+def kept_setup(rec: Recording, reader: str | None, options: dict, sessions: list) -> FrameSetup | None:
+    """The set-up (up rotation, floor height, depth error) that the map's latest session to read
+    ``rec`` (matched by its resolved path) measured, when it read it as now: with the ``reader``
+    and ``options`` that recordings/open.as_ingested chose (a reader other than the session's is
+    another reading, as there) and to the same format. None for a recording new to the map, read
+    another way now, or read by a map made before ltc kept the set-up. A recording the map has read
+    before is set up as it was then, so that its sessions stay in one map frame whatever a later
+    ltc estimates from its frames."""
+    where = str(Path(rec.path).resolve())
+    for row in reversed(sessions):
+        try:
+            sources = json.loads(row.get("sources") or "[]")
+            if where not in sources:
+                continue
+            i = sources.index(where)
+            readers, kept = json.loads(row.get("readers") or "[]"), json.loads(row.get("reader_options") or "[]")
+            ups, floors = json.loads(row.get("up_rotation") or "[]"), json.loads(row.get("floor_z") or "[]")
+            cameras = json.loads(row.get("cameras") or "[]")
+            now = json.loads(json.dumps(options or {}, sort_keys=True, default=str))
+            if readers[i] != rec.format or reader not in (None, readers[i]) or kept[i] != now:
+                return None
+            R_up = np.asarray(ups[i], dtype=np.float64)
+            floor_z, noise = floors[i], cameras[i].get("depth_noise")
+        except (ValueError, IndexError, TypeError, AttributeError):
+            return None  # a row without the set-up (an older map): measure it again
+        if R_up.shape != (3, 3) or not np.isfinite(R_up).all():
+            return None
+        return FrameSetup(R_up, None if floor_z is None else float(floor_z), None if noise is None else float(noise))
+    return None
