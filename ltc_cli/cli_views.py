@@ -189,6 +189,7 @@ def changes_cmd(map_path, since, move_radius, fmt):
     if fmt == "json":
         doc = {"map": str(map_path), "since": report.since, "sessions": report.sessions,
                "move_radius": radius, "replaced": report.replaced, "confirmed": report.confirmed,
+               "first_seen": report.first_seen,
                "changes": [c.as_dict() for c in report.changes]}
         click.echo(json.dumps(doc, indent=2))
     elif fmt == "csv":
@@ -204,6 +205,8 @@ def changes_cmd(map_path, since, move_radius, fmt):
     kept = f"; {plural(report.replaced, 'object')} re-identified in place" if report.replaced else ""
     if report.confirmed:
         kept += f"; {plural(report.confirmed, 'object')} an earlier visit named once, confirmed"
+    if report.first_seen:
+        kept += f"; {plural(report.first_seen, 'object')} first seen where no earlier session looked"
     click.echo(f"{map_path}: since session {report.since} ({plural(max(later, 0), 'later session')}): "
                f"{counts}{kept}", err=True)
 

@@ -135,7 +135,8 @@ def ghost_lines(first_map, tmp, revisit, passes) -> list[str]:
 def unchanged_lines(maps) -> list[str]:
     """benchmarks/bench_real.py's report on passes over a room that did not change: what
     ``ltc changes`` reports after each map's last session (maps of one session are skipped), and
-    how many additions it counted as confirmed (an earlier session's glimpse)."""
+    how many additions it counted as confirmed (an earlier session's glimpse) or as first seen
+    (where no earlier session looked)."""
     reports = [(label, map_changes(smap)) for label, path in maps
                if len((smap := load_map(path)).sessions) > 1]
     if not reports:
@@ -143,6 +144,7 @@ def unchanged_lines(maps) -> list[str]:
     total = {k: sum(rep.count(k) for _, rep in reports) for k in KINDS}
     out = [f"  ltc changes after the {len(reports)} revisits above (the room did not change): "
            + ", ".join(f"{n} {k}" for k, n in total.items())
-           + f"; {plural(sum(rep.confirmed for _, rep in reports), 'addition')} confirmed an earlier session's glimpse"]
+           + f"; {plural(sum(rep.confirmed for _, rep in reports), 'addition')} confirmed an earlier session's glimpse"
+           + f"; {plural(sum(rep.first_seen for _, rep in reports), 'addition')} first seen where no earlier session looked"]
     return out + [f"    {label}: " + ", ".join(f"{c.kind} {c.cls} {c.object_id}" for c in rep.changes)
                   for label, rep in reports if rep.changes]

@@ -36,7 +36,8 @@ from ltc_cli.ingest.frame_setup import frame_setup_for
 from ltc_cli.ingest.frame_warnings import detections_source, report_warnings
 from ltc_cli.ingest.keyframes import Reach, StillFrames, fixed_camera_after, known_pose
 from ltc_cli.ingest.prefetch import Prefetch, Stopped, load_and_detect
-from ltc_cli.ingest.session_row import kept_setup, now_iso, session_row, sessions_of
+from ltc_cli.ingest.session_row import keep_progress, kept_setup, now_iso, session_row, sessions_of
+from ltc_cli.map.coverage import Coverage
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.store import MapLock, load_map, save_map
 from ltc_cli.pipeline.classes import ClassMapper
@@ -262,6 +263,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
     error: BaseException | None = None
     ahead: Prefetch | None = None
     still = StillFrames.resumed(plan.settings["frames"], len(plan.setups), row.get("still_refs") or "")
+    cover = Coverage.resumed(row.get("coverage") or "", plan.settings["maintenance"]["ray_step"], row["frames_done"])
     try:
         for r, setup in enumerate(plan.setups):
             rec, det = setup.recording, setup.detector
@@ -328,11 +330,11 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     dets = most_confident(dets, max_dets)
                 stage1 = dets if isinstance(dets, FrameModel) else None  # made by a Dask worker
                 masks, vectors = in_map_classes(dets, mapper_classes) if stage1 is None else ([], [])
-                res = mapper.process_frame(
-                    ref.index, key, masks, vectors,
-                    frame.depth_m, T_up @ frame.T_world_camera, frame.intrinsics, setup.depth_range,
-                    floor_z=setup.floor_z, stage1=stage1, depth_noise=setup.depth_noise,
-                )
+                T_map_camera = T_up @ frame.T_world_camera
+                res = mapper.process_frame(ref.index, key, masks, vectors, frame.depth_m, T_map_camera,
+                                           frame.intrinsics, setup.depth_range, floor_z=setup.floor_z, stage1=stage1,
+                                           depth_noise=setup.depth_noise)
+                cover.add(frame.depth_m, T_map_camera, frame.intrinsics, setup.depth_range)
                 stage["modeling"] += stage1.seconds if stage1 is not None else 0.0
                 for k, v in res.timings.items():
                     stage[k] += v
@@ -350,7 +352,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
                     opts.on_frame(summary)
                 opts.tick()
                 if opts.checkpoint_every and since_commit >= opts.checkpoint_every:
-                    row["still_refs"] = still.text()
+                    keep_progress(row, still, cover)
                     save_map(smap, map_path)
                     since_commit = 0
             if ahead is not None:
@@ -376,7 +378,7 @@ def _run(smap: SemanticMap, map_path: Path, plan: Plan, opts: RunOptions) -> Ing
             ahead.close()
     row["status"] = "interrupted" if (summary.interrupted or error is not None) else "complete"
     row["finished"] = now_iso()
-    row["still_refs"] = still.text()
+    keep_progress(row, still, cover)
     # A run that mapped no frame leaves the file as it was (and creates none): bad input never
     # changes a map.
     if summary.frames_done > 0 or (completes and error is None):

@@ -79,6 +79,7 @@ def session_row(smap: SemanticMap, plan: "Plan") -> tuple[int, dict]:
         "policy": config["maintenance"]["policy"], "settings": json.dumps(settings),
         "v_other": float(config["maintenance"]["v_other"]), "ltc_version": __version__,
         "frames_done": 0, "frames_skipped": 0, "frames_still": 0, "still_refs": "[]", "visit": visit, "frames": frames,
+        "coverage": "",
         "up_rotation": json.dumps([np.asarray(s.R_up, dtype=np.float64).tolist() for s in plan.setups]),
         "floor_z": json.dumps([None if s.floor_z is None else float(s.floor_z) for s in plan.setups]),
         "cameras": json.dumps([camera_record(s.recording, s.depth_noise) for s in plan.setups]),
@@ -127,3 +128,9 @@ def kept_setup(rec: Recording, reader: str | None, options: dict, sessions: list
             return None
         return FrameSetup(R_up, None if floor_z is None else float(floor_z), None if noise is None else float(noise))
     return None
+
+
+def keep_progress(row: dict, still, cover) -> None:
+    """What a resumed run goes on from, into the session's row: the last mapped poses of a still
+    camera (ingest/keyframes.StillFrames) and the cells the session saw (map/coverage.Coverage)."""
+    row["still_refs"], row["coverage"] = still.text(), cover.text()

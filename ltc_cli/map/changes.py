@@ -19,6 +19,9 @@ Objects merged into another (duplicates found and fused) are neither removed nor
 addition where a session up to ``since`` named a thing of its class once (an object it removed as
 unconfirmed, at the same place by :func:`in_place`) is no change either: the thing was there, and
 a later visit's detector confirmed what the earlier one glimpsed (``ChangeReport.confirmed``).
+Nor is an addition at a place no session up to ``since`` looked at (less than ``FIRST_SEEN_SHARE``
+of its footprint's cells in their ``coverage``, map/coverage.py): a room the robot had not entered
+yet (``ChangeReport.first_seen``). Maps whose sessions kept no coverage report every addition.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import numpy as np
 
 from ltc_cli.errors import LtcError
 from ltc_cli.geometry.polygons import paired_ious
+from ltc_cli.map.coverage import decode, footprint_cells
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
 from ltc_cli.map.query import classify, removal_events
 
@@ -44,6 +48,9 @@ MIN_SMALL_MOVE = 0.15
 #: The word the event log's reason for a removal as unconfirmed starts with
 #: (ltc_cli/pipeline/reasons.py ``unconfirmed_detail``).
 UNCONFIRMED = "unconfirmed:"
+#: An addition is a change only where the earlier sessions saw at least this share of its footprint's
+#: cells: a thing there then would have been in their depth.
+FIRST_SEEN_SHARE = 0.5
 KINDS = ("added", "removed", "moved")
 
 
@@ -93,6 +100,7 @@ class ChangeReport:
     changes: list[Change]
     replaced: int = 0  # objects still in place whose box the map replaced (not changes)
     confirmed: int = 0  # objects an earlier session named once at their place (not changes)
+    first_seen: int = 0  # objects at places no earlier session looked at (not changes)
 
     def count(self, kind: str) -> int:
         return sum(c.kind == kind for c in self.changes)
@@ -141,7 +149,9 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
     moves = _pair_moves(removed, added, move_radius)
     used_r = {id(m[0]) for m in moves}
     used_a = {id(m[1]) for m in moves}
-    changes = [c for c in added if id(c) not in used_a] + [c for c in removed if id(c) not in used_r]
+    added = [c for c in added if id(c) not in used_a]
+    unseen = first_seen(added, seen_before(smap, since))
+    changes = [c for c, new in zip(added, unseen) if not new] + [c for c in removed if id(c) not in used_r]
     replaced = 0
     for old, new in moves:
         new.kind, new.from_id, new.from_center = "moved", old.object_id, old.center
@@ -150,7 +160,35 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
         else:
             changes.append(new)
     changes.sort(key=lambda c: (c.session, KINDS.index(c.kind), c.object_id))
-    return ChangeReport(since, n_sessions, changes, replaced, confirmed)
+    return ChangeReport(since, n_sessions, changes, replaced, confirmed, int(unseen.sum()))
+
+
+def seen_before(smap: SemanticMap, since: int) -> tuple[set, float] | None:
+    """(cell keys, cell size) that sessions 0..``since`` saw (their rows' ``coverage``); None when
+    one of them kept none (written before ltc kept it, or unreadable) or they used other cell sizes."""
+    keys: set = set()
+    cells = set()
+    for row in smap.sessions[: since + 1]:
+        try:
+            got, cell = decode(row.get("coverage") or "")
+        except ValueError:
+            return None
+        keys.update(got.tolist())
+        cells.add(cell)
+    return (keys, cells.pop()) if len(cells) == 1 else None
+
+
+def first_seen(added: list[Change], seen: tuple[set, float] | None, share: float = FIRST_SEEN_SHARE) -> np.ndarray:
+    """(A,) bool: the additions less than ``share`` of whose footprint's cells are in ``seen``
+    (:func:`seen_before`); none when ``seen`` is None."""
+    out = np.zeros(len(added), dtype=bool)
+    if seen is None:
+        return out
+    keys, cell = seen
+    for k, c in enumerate(added):
+        under = footprint_cells(np.asarray(c.center), c.yaw, np.asarray(c.size), cell)
+        out[k] = sum(int(u) in keys for u in under.tolist()) < share * len(under)
+    return out
 
 
 def glimpsed_at(added: list[Change], glimpsed: list[Change], min_move: float = MIN_MOVE,

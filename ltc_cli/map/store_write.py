@@ -41,6 +41,7 @@ SESSION_COLUMNS = {
     "still_refs": "s",  # per recording, the last mapped pose (JSON), that a resumed session goes on from
     "reader_options": "s",  # the reader options the ingest was given (-r, JSON), to read it again so; "" in older maps
     "frames": "s",  # the range of the recordings' frames mapped (--frames); "" for all, and in older maps
+    "coverage": "s",  # the floor-plan cells the session's depth saw (map/coverage.py); "" in older maps
 }
 # Checksummed metadata (libver v108); free-space records kept in the file, so freed space is reused.
 FILE_OPTIONS = {"libver": ("v108", "latest"), "fs_strategy": "fsm", "fs_persist": True, "fs_threshold": 1}
