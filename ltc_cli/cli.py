@@ -204,6 +204,7 @@ def info(map_path, fmt):
     """Summarise a map: classes, objects, sessions, frames."""
     import numpy as np
 
+    from ltc_cli.map.coverage import seen_area
     from ltc_cli.map.model import ACTIVE, MERGED, REMOVED
     from ltc_cli.map.store import FORMAT, VERSION, load_map, orphan_temp_files
 
@@ -233,7 +234,8 @@ def info(map_path, fmt):
                "v_other_learnt": _learnt_rate(s)}
             | {"sources": json.loads(s["sources"]), "detector": json.loads(s["detector"])["name"]}
             | {"cameras": json.loads(s.get("cameras") or "[]"), "readers": json.loads(s.get("readers") or "[]"),
-               "reader_options": _json_list(s.get("reader_options")), "frames": s.get("frames") or ""}
+               "reader_options": _json_list(s.get("reader_options")), "frames": s.get("frames") or "",
+               "seen_m2": seen_area(s.get("coverage") or "")}
             for s in smap.sessions
         ],
         "up_rotation": np.asarray(smap.up_rotation).round(6).tolist(),
@@ -266,6 +268,8 @@ def info(map_path, fmt):
             click.echo(f"     camera {cam}")
         for given in dict.fromkeys(options_text(o) for o in s["reader_options"] if o):
             click.echo(f"     read with {given}")
+        if s["seen_m2"] is not None:
+            click.echo(f"     saw {s['seen_m2']:.1f} m2 of floor plan (the places ltc changes compares)")
     click.echo(f"{map_path}: {_plural(o['active'], 'object')} of {_plural(len(per_class), 'class')} from "
                f"{_plural(len(smap.frame_keys), 'frame')} in {_plural(len(smap.sessions), 'session')}")
 

@@ -143,3 +143,17 @@ def test_an_ingest_keeps_the_cells_it_saw_and_a_resumed_run_the_same(tmp_path):
     assert 0 < len(part) < len(seen)
     ingest([LAP1], m, defaults())
     assert load_map(m).sessions[0]["coverage"] == smap.sessions[0]["coverage"]
+
+
+def test_info_says_how_much_floor_plan_each_session_saw(tmp_path):
+    m = tmp_path / "m.h5"
+    ingest([LAP1], m, defaults(), frames=slice(0, 30))
+    r = CliRunner().invoke(cli, ["info", str(m), "--format", "json"])
+    assert r.exit_code == 0, r.output
+    n = len(decode(load_map(m).sessions[0]["coverage"])[0])
+    assert json.loads(r.stdout)["sessions"][0]["seen_m2"] == n * 0.25 * 0.25 > 0
+    r = CliRunner().invoke(cli, ["info", str(m)])
+    assert f"saw {n * 0.0625:.1f} m2 of floor plan" in r.output
+    save_map(two_sessions(None), m)  # sessions that kept none: no line, and null
+    r = CliRunner().invoke(cli, ["info", str(m), "--format", "json"])
+    assert [s["seen_m2"] for s in json.loads(r.stdout)["sessions"]] == [None, 900 * 0.0625]

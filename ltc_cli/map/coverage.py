@@ -14,7 +14,6 @@ import zlib
 
 import numpy as np
 
-from ltc_cli.geometry.camera import backproject, transform
 from ltc_cli.types import Intrinsics
 
 #: Metres: a cell is about a chair's seat; a room's floor plan is a few hundred of them.
@@ -44,6 +43,8 @@ def seen_cells(depth_m: np.ndarray, T_map_camera: np.ndarray, intr: Intrinsics, 
     """Keys (K,) of the cells in which the depth image ``depth_m`` (H, W) has a reading within
     ``depth_range``, seen from ``T_map_camera`` (4, 4): the places this view saw, a floor, a table
     top or a wall. Readings beyond the range are too sparse to say a place was seen."""
+    from ltc_cli.geometry.camera import backproject, transform  # scipy: not for ltc info's start-up
+
     # The pixels of pipeline/visibility.ray_grid's rays, one in each step x step block.
     v, u = np.meshgrid(np.arange(step / 2 - 0.5, depth_m.shape[0], step).astype(int),
                        np.arange(step / 2 - 0.5, depth_m.shape[1], step).astype(int), indexing="ij")
@@ -86,6 +87,15 @@ def decode(text: str) -> tuple[np.ndarray, float]:
     if len(raw) % 8:
         raise ValueError("cells: truncated")
     return np.cumsum(np.frombuffer(raw, dtype="<i8").astype(np.int64)), cell
+
+
+def seen_area(text: str) -> float | None:
+    """Square metres of floor plan a session's ``coverage`` text says it saw; None when it kept none."""
+    try:
+        keys, cell = decode(text)
+    except ValueError:
+        return None
+    return len(keys) * cell * cell
 
 
 class Coverage:
