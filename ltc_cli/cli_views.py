@@ -77,6 +77,8 @@ def export_cmd(map_path, fmt, output, origin):
 @click.option("--changes", "show_changes", is_flag=True,
               help="Mark what the latest visit changed (as `ltc changes`): added green, removed red, moved orange.")
 @click.option("--since", type=click.IntRange(min=-1), metavar="SESSION", help="With --changes: changes after this session.")
+@click.option("--coverage", "show_seen", is_flag=True,
+              help="Shade the floor plan the sessions' depth saw (with --changes: the sessions it compares with).")
 @click.option("--recording", type=click.Path(), metavar="RECORDING",
               help="Instead of top-down: draw the boxes into frames of this recording, as its camera saw them.")
 @click.option("--frames", "frame_list", metavar="I,J,...",
@@ -89,27 +91,28 @@ def export_cmd(map_path, fmt, output, origin):
 @click.option("--reader-option", "-r", "reader_opts", multiple=True, metavar="KEY=VALUE",
               help="With --recording: a reader option (as for ingest).")
 @click.pass_context
-def render_cmd(ctx, map_path, output, ground_truth, width, height, labels, show_changes, since, recording, frame_list,
-               columns, scale, ids, reader, reader_opts):
+def render_cmd(ctx, map_path, output, ground_truth, width, height, labels, show_changes, since, show_seen, recording,
+               frame_list, columns, scale, ids, reader, reader_opts):
     """Draw MAP.h5 top-down (footprints by class, labels, scale bar, legend) into a picture (PNG, or
     JPEG, WebP, TIFF, BMP by the output's suffix); with --recording, its boxes drawn into that
     recording's frames instead (to see that each box sits on its thing)."""
     from pathlib import Path
 
     from ltc_cli.map.changes import map_changes
+    from ltc_cli.map.coverage import sessions_seen
     from ltc_cli.map.render import load_ground_truth, render_map
     from ltc_cli.map.store import load_map
 
     if since is not None and not show_changes:
         raise click.UsageError("--since goes with --changes")
-    given = {name for name in ("ground_truth", "width", "height", "labels", "show_changes", "frame_list", "columns",
-                               "scale", "ids", "reader", "reader_opts")
+    given = {name for name in ("ground_truth", "width", "height", "labels", "show_changes", "show_seen", "frame_list",
+                               "columns", "scale", "ids", "reader", "reader_opts")
              if ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE}
     if recording is not None:
-        top_down = sorted(given & {"width", "height", "labels", "show_changes"})
+        top_down = sorted(given & {"width", "height", "labels", "show_changes", "show_seen"})
         if top_down:
-            raise click.UsageError(f"--{top_down[0].replace('_', '-').replace('show-', '')} draws the top-down "
-                                   "picture; it does not go with --recording")
+            flag = {"show_changes": "changes", "show_seen": "coverage"}.get(top_down[0], top_down[0])
+            raise click.UsageError(f"--{flag} draws the top-down picture; it does not go with --recording")
         _render_frames(map_path, output, recording, frame_list, columns, scale, ids, reader, reader_opts, ground_truth)
         return
     framed = sorted(given & {"frame_list", "columns", "scale", "ids", "reader", "reader_opts"})
@@ -118,10 +121,17 @@ def render_cmd(ctx, map_path, output, ground_truth, width, height, labels, show_
         raise click.UsageError(f"--{option.get(framed[0], framed[0])} goes with --recording")
     smap = load_map(map_path, events=show_changes)  # only --changes reads the event log
     gt = load_ground_truth(ground_truth) if ground_truth else None
-    changes = map_changes(smap, since, map_path=map_path).changes if show_changes else None
+    report = map_changes(smap, since, map_path=map_path) if show_changes else None
+    seen = None
+    if show_seen:
+        seen = sessions_seen(smap.sessions[: report.since + 1] if report else smap.sessions, strict=False)
+        if seen is None:
+            raise click.ClickException(f"{map_path}: its sessions kept no record of where they looked "
+                                       "(maps written before ltc kept it)")
     res = render_map(smap, output, ground_truth=gt, width=width, height=height, labels=labels,
-                     map_name=Path(map_path).name, changes=changes)
+                     map_name=Path(map_path).name, changes=report.changes if report else None, seen=seen)
     extra = f", {res.ground_truth} ground-truth boxes" if gt is not None else ""
+    extra += f", {len(seen[0]) * seen[1] ** 2:.1f} m2 seen" if seen is not None else ""
     if res.changes is not None:
         extra += ", changes: " + ", ".join(f"{n} {k}" for k, n in res.changes.items())
     fmt = "" if res.format == "PNG" else f" {res.format}"

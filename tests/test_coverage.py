@@ -157,3 +157,32 @@ def test_info_says_how_much_floor_plan_each_session_saw(tmp_path):
     save_map(two_sessions(None), m)  # sessions that kept none: no line, and null
     r = CliRunner().invoke(cli, ["info", str(m), "--format", "json"])
     assert [s["seen_m2"] for s in json.loads(r.stdout)["sessions"]] == [None, 900 * 0.0625]
+
+
+def test_render_shades_the_floor_plan_seen(tmp_path):
+    from matplotlib.colors import to_rgb
+    from PIL import Image
+
+    from ltc_cli.map.coverage import sessions_seen
+    from ltc_cli.map.render import render_map
+    from ltc_cli.map.render_marks import SEEN_COLOUR
+
+    smap = two_sessions(encode(cells(*[(i, j) for i in range(4) for j in range(4)])))
+    # Session 0 saw x and y 0..1 m; with session 1, 0..7.5 m: (3.1, 6.1), off the grid lines, by both only.
+    for rows, want in ((smap.sessions[:1], False), (smap.sessions, True)):
+        res = render_map(smap, tmp_path / "m.png", seen=sessions_seen(rows), labels=False)
+        img = np.asarray(Image.open(tmp_path / "m.png").convert("RGB")).astype(int)
+        shade = np.round(np.array(to_rgb(SEEN_COLOUR)) * 255).astype(int)
+        for (x, y), seen in (((0.1, 0.9), True), ((3.1, 6.1), want)):
+            c, r, _ = res.world_to_pixel @ [x, y, 1.0]
+            got = img[int(r), int(c)]
+            assert (np.abs(got - shade).max() <= 2) == seen, (x, y, got)
+    m = tmp_path / "m.h5"
+    save_map(smap, m)
+    r = CliRunner().invoke(cli, ["render", str(m), "-o", str(tmp_path / "c.png"), "--coverage"])
+    assert r.exit_code == 0 and "56.2 m2 seen" in r.output, r.output  # 900 cells of 0.0625 m2
+    save_map(two_sessions(None), m)
+    r = CliRunner().invoke(cli, ["render", str(m), "-o", str(tmp_path / "d.png"), "--coverage", "--changes"])
+    assert r.exit_code == 1 and "kept no record of where they looked" in r.output and "Traceback" not in r.output
+    r = CliRunner().invoke(cli, ["render", str(m), "-o", str(tmp_path / "e.png"), "--coverage", "--recording", "x"])
+    assert r.exit_code == 2 and "--coverage draws the top-down picture" in r.output

@@ -32,7 +32,7 @@ import numpy as np
 
 from ltc_cli.errors import LtcError
 from ltc_cli.geometry.polygons import paired_ious
-from ltc_cli.map.coverage import decode, footprint_cells
+from ltc_cli.map.coverage import footprint_cells, sessions_seen
 from ltc_cli.map.model import ACTIVE, REMOVED, SemanticMap
 from ltc_cli.map.query import classify, removal_events
 
@@ -166,16 +166,8 @@ def map_changes(smap: SemanticMap, since: int | None = None, move_radius: float 
 def seen_before(smap: SemanticMap, since: int) -> tuple[set, float] | None:
     """(cell keys, cell size) that sessions 0..``since`` saw (their rows' ``coverage``); None when
     one of them kept none (written before ltc kept it, or unreadable) or they used other cell sizes."""
-    keys: set = set()
-    cells = set()
-    for row in smap.sessions[: since + 1]:
-        try:
-            got, cell = decode(row.get("coverage") or "")
-        except ValueError:
-            return None
-        keys.update(got.tolist())
-        cells.add(cell)
-    return (keys, cells.pop()) if len(cells) == 1 else None
+    seen = sessions_seen(smap.sessions[: since + 1])
+    return None if seen is None else (set(seen[0].tolist()), seen[1])
 
 
 def first_seen(added: list[Change], seen: tuple[set, float] | None, share: float = FIRST_SEEN_SHARE) -> np.ndarray:

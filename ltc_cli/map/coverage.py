@@ -89,6 +89,25 @@ def decode(text: str) -> tuple[np.ndarray, float]:
     return np.cumsum(np.frombuffer(raw, dtype="<i8").astype(np.int64)), cell
 
 
+def sessions_seen(rows: list[dict], strict: bool = True) -> tuple[np.ndarray, float] | None:
+    """(keys (K,), cell size): the cells the session ``rows`` saw together. None when none of them
+    kept any, when they used other cell sizes, or (``strict``) when one of them kept none (written
+    by an older ltc): a part of what they saw would pass for all of it."""
+    keys, cells = [], set()
+    for row in rows:
+        try:
+            got, cell = decode(row.get("coverage") or "")
+        except ValueError:
+            if strict:
+                return None
+            continue
+        keys.append(got)
+        cells.add(cell)
+    if len(cells) != 1:
+        return None
+    return np.unique(np.concatenate(keys)), cells.pop()
+
+
 def seen_area(text: str) -> float | None:
     """Square metres of floor plan a session's ``coverage`` text says it saw; None when it kept none."""
     try:

@@ -24,7 +24,8 @@ from ltc_cli.fileio import atomic_target
 from ltc_cli.geometry.boxes import box_corners
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.query import classify
-from ltc_cli.map.render_marks import CHANGE_COLOURS, draw_changes, place_labels
+from ltc_cli.map.coverage import key_cells
+from ltc_cli.map.render_marks import CHANGE_COLOURS, SEEN_COLOUR, draw_changes, draw_seen, place_labels
 from ltc_cli.recordings.groundtruth import read_ground_truth
 
 FILL_ALPHA = 0.35          # footprint fill over the white background
@@ -159,6 +160,7 @@ def render_map(
     bounds: tuple[float, float, float, float] | None = None,
     map_name: str | None = None,
     changes: list | None = None,
+    seen: tuple[np.ndarray, float] | None = None,
 ) -> RenderResult:
     """Draw the map's active objects top-down and write a picture of exactly ``width`` x ``height``:
     PNG, or JPEG / WebP / TIFF / BMP when ``out_path`` ends so (:func:`picture_format`).
@@ -172,6 +174,8 @@ def render_map(
     map_name: shown at the start of the default title.
     changes: :class:`~ltc_cli.map.changes.Change` list (``ltc changes``), marked over the map
         (:func:`~ltc_cli.map.render_marks.draw_changes`).
+    seen: (cell keys (K,), cell size) of the floor plan sessions saw (map/coverage.sessions_seen),
+        shaded beneath everything.
     The file is written atomically (temporary file beside it, then ``os.replace``).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -222,7 +226,8 @@ def render_map(
     else:
         gone = [box_corners(np.asarray(c.center), c.yaw, np.asarray(c.size))[None, :4, :2]
                 for c in changes or () if c.kind != "added"]
-        xlim, ylim = _bounds([rings, gt_rings, *gone])
+        ij = key_cells(seen[0]) * seen[1] if seen is not None and len(seen[0]) else np.zeros((0, 2))
+        xlim, ylim = _bounds([rings, gt_rings, *gone, ij, ij + seen[1] if len(ij) else ij])
     # Outlines thinner than the footprints they draw: with thousands of small boxes 1.4 pt lines
     # would cover the fills. ~0.8 of the width is the axes; a tenth of a typical footprint.
     px_per_m = 0.8 * min(width / (xlim[1] - xlim[0]), height / (ylim[1] - ylim[0]))
@@ -230,6 +235,10 @@ def render_map(
     lw = float(np.clip(0.1 * typical * px_per_m * 72.0 / dpi, 0.3, 1.4))
 
     handles = []
+    if seen is not None and len(seen[0]):
+        draw_seen(ax, key_cells(seen[0]), seen[1])
+        handles.append(Patch(facecolor=SEEN_COLOUR, edgecolor="none",
+                             label=f"seen by the depth ({len(seen[0]) * seen[1] ** 2:.0f} m2)"))
     if len(gt_rings):
         ax.add_collection(PolyCollection(list(gt_rings), closed=True, facecolors="none", edgecolors=GT_COLOUR,
                                          linestyles=(0, (4, 3)), linewidths=min(1.1, lw), zorder=1))

@@ -81,3 +81,27 @@ def draw_changes(ax, changes, linewidth: float) -> dict[str, int]:
                         arrowprops=dict(arrowstyle="->", color=colour, linewidth=lw * 0.8, shrinkA=0, shrinkB=0))
         counts[c.kind] += 1
     return counts
+
+
+#: The floor plan the sessions' depth saw (map/coverage.py), beneath everything.
+SEEN_COLOUR = "#d6e9f8"
+#: Cells of the picture's raster at most, a side: a wider map's cells are drawn in blocks.
+MAX_SEEN_SIDE = 4096
+
+
+def draw_seen(ax, cells_ij: np.ndarray, cell: float) -> tuple[float, float, float, float]:
+    """Shade the cells (K, 2) int (ix, iy) of ``cell`` metres beneath the map; returns the extent
+    (xmin, xmax, ymin, ymax) drawn. One raster, so a city of cells costs one image."""
+    from matplotlib.colors import to_rgb
+
+    lo, hi = cells_ij.min(axis=0), cells_ij.max(axis=0)
+    block = int(np.ceil((hi - lo + 1).max() / MAX_SEEN_SIDE))
+    ij = (cells_ij - lo) // block
+    grid = np.zeros(tuple(ij.max(axis=0) + 1), dtype=bool)
+    grid[ij[:, 0], ij[:, 1]] = True
+    x0, y0 = lo * cell
+    x1, y1 = x0 + grid.shape[0] * block * cell, y0 + grid.shape[1] * block * cell
+    rgba = np.zeros(grid.T.shape + (4,))
+    rgba[grid.T] = (*to_rgb(SEEN_COLOUR), 1.0)
+    ax.imshow(rgba, origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest", zorder=0.5, aspect="auto")
+    return float(x0), float(x1), float(y0), float(y1)
