@@ -22,9 +22,9 @@ import numpy as np
 from ltc_cli.errors import LtcError
 from ltc_cli.fileio import atomic_target
 from ltc_cli.geometry.boxes import box_corners
+from ltc_cli.map.coverage import key_cells
 from ltc_cli.map.model import SemanticMap
 from ltc_cli.map.query import classify
-from ltc_cli.map.coverage import key_cells
 from ltc_cli.map.render_marks import CHANGE_COLOURS, SEEN_COLOUR, draw_changes, draw_seen, place_labels
 from ltc_cli.recordings.groundtruth import read_ground_truth
 
@@ -205,6 +205,7 @@ def render_map(
                 if gt else np.zeros((0, 4, 2)))
     if labels is None:
         labels = len(rows) <= MAX_AUTO_LABELS
+    seen_ij = key_cells(seen[0]) if seen is not None and len(seen[0]) else None  # (K, 2) cells shaded
 
     # Fonts and lines scale with the picture: 100 dpi at 1200 x 900, gently less for small images.
     scale = min(width / 1200.0, height / 900.0)
@@ -226,8 +227,8 @@ def render_map(
     else:
         gone = [box_corners(np.asarray(c.center), c.yaw, np.asarray(c.size))[None, :4, :2]
                 for c in changes or () if c.kind != "added"]
-        ij = key_cells(seen[0]) * seen[1] if seen is not None and len(seen[0]) else np.zeros((0, 2))
-        xlim, ylim = _bounds([rings, gt_rings, *gone, ij, ij + seen[1] if len(ij) else ij])
+        corners = [seen_ij * seen[1], (seen_ij + 1) * seen[1]] if seen_ij is not None else []
+        xlim, ylim = _bounds([rings, gt_rings, *gone, *corners])
     # Outlines thinner than the footprints they draw: with thousands of small boxes 1.4 pt lines
     # would cover the fills. ~0.8 of the width is the axes; a tenth of a typical footprint.
     px_per_m = 0.8 * min(width / (xlim[1] - xlim[0]), height / (ylim[1] - ylim[0]))
@@ -235,8 +236,8 @@ def render_map(
     lw = float(np.clip(0.1 * typical * px_per_m * 72.0 / dpi, 0.3, 1.4))
 
     handles = []
-    if seen is not None and len(seen[0]):
-        draw_seen(ax, key_cells(seen[0]), seen[1])
+    if seen_ij is not None:
+        draw_seen(ax, seen_ij, seen[1])
         handles.append(Patch(facecolor=SEEN_COLOUR, edgecolor="none",
                              label=f"seen by the depth ({len(seen[0]) * seen[1] ** 2:.0f} m2)"))
     if len(gt_rings):
